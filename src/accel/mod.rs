@@ -1,0 +1,200 @@
+//! One interface for ray queries, so that every renderer in the crate runs
+//! unchanged on Embree or on the pure-Rust BVH.
+//!
+//! Geometry is given once as object-space triangle meshes; each mesh is one
+//! *instance* whose object-to-world transform can change. Moving to a new
+//! scene time therefore only updates transforms (and, for Embree, recommits
+//! the top-level scene) instead of rebuilding any triangle hierarchy.
+
+use anyhow::Result;
+use glam::{Affine3A, Vec3};
+
+pub mod bvh;
+#[cfg(feature = "embree")]
+pub mod embree;
+
+/// A ray segment `origin + t * dir` for `t` in `[tmin, tmax]`.
+/// `dir` need not be normalized; `t` of a hit is in units of `dir`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub tmin: f32,
+    pub tmax: f32,
+}
+
+impl Ray {
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Self {
+            origin,
+            dir,
+            tmin: 0.0,
+            tmax: f32::INFINITY,
+        }
+    }
+
+    pub fn segment(origin: Vec3, dir: Vec3, tmax: f32) -> Self {
+        Self {
+            origin,
+            dir,
+            tmin: 0.0,
+            tmax,
+        }
+    }
+
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+}
+
+/// The closest intersection of a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Ray parameter of the hit, in units of `Ray::dir`.
+    pub t: f32,
+    /// Index of the mesh (scene object) that was hit.
+    pub object: u32,
+    /// Index of the triangle within that mesh.
+    pub primitive: u32,
+    /// Barycentric coordinates of the hit: `p = (1-u-v) v0 + u v1 + v v2`.
+    pub u: f32,
+    pub v: f32,
+    /// World-space geometric normal, normalized, oriented by the triangle's
+    /// winding: `(v1 - v0) x (v2 - v0)`.
+    pub normal: Vec3,
+}
+
+/// Object-space triangle mesh as the ray engines consume it.
+#[derive(Clone, Debug, Default)]
+pub struct MeshGeometry {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Ray queries against a committed scene. Implementations are safe to share
+/// between tracing threads.
+pub trait RayEngine: Send + Sync {
+    /// Short name for reports ("embree", "bvh").
+    fn name(&self) -> &'static str;
+
+    /// Closest hit along the ray, if any.
+    fn intersect(&self, ray: &Ray) -> Option<Hit>;
+
+    /// Whether anything blocks the ray within `[tmin, tmax]`.
+    fn occluded(&self, ray: &Ray) -> bool;
+
+    /// Closest hits for many rays; `out.len()` must equal `rays.len()`.
+    /// Backends override this where batching is faster (e.g. coherent
+    /// primary rays).
+    fn intersect_batch(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        assert_eq!(
+            rays.len(),
+            out.len(),
+            "intersect_batch: rays and out differ in length"
+        );
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.intersect(r);
+        }
+    }
+
+    /// Occlusion answers for many rays; `out.len()` must equal `rays.len()`.
+    fn occluded_batch(&self, rays: &[Ray], out: &mut [bool]) {
+        assert_eq!(
+            rays.len(),
+            out.len(),
+            "occluded_batch: rays and out differ in length"
+        );
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.occluded(r);
+        }
+    }
+}
+
+/// A ray engine over instanced meshes whose transforms can be updated.
+pub trait InstancedEngine: RayEngine {
+    /// Sets every instance's object-to-world transform (one per mesh, in mesh
+    /// order) and makes the scene ready for queries again.
+    fn set_transforms(&mut self, transforms: &[Affine3A]) -> Result<()>;
+}
+
+/// Which ray engine to build.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Backend {
+    /// Intel Embree 3 (needs the `embree` feature).
+    Embree,
+    /// Pure-Rust BVH (obvhs).
+    Bvh,
+}
+
+impl Backend {
+    /// The backend used when none is asked for: Embree where it is built in.
+    pub fn default_available() -> Self {
+        if cfg!(feature = "embree") {
+            Backend::Embree
+        } else {
+            Backend::Bvh
+        }
+    }
+
+    /// Every backend this build contains.
+    pub fn available() -> &'static [Backend] {
+        if cfg!(feature = "embree") {
+            &[Backend::Embree, Backend::Bvh]
+        } else {
+            &[Backend::Bvh]
+        }
+    }
+}
+
+impl std::fmt::Display for Backend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Backend::Embree => "embree",
+            Backend::Bvh => "bvh",
+        })
+    }
+}
+
+/// Builds a ray engine over `meshes`, instance `i` placed by `transforms[i]`.
+pub fn build(
+    backend: Backend,
+    meshes: &[MeshGeometry],
+    transforms: &[Affine3A],
+) -> Result<Box<dyn InstancedEngine>> {
+    anyhow::ensure!(
+        meshes.len() == transforms.len(),
+        "{} meshes but {} transforms",
+        meshes.len(),
+        transforms.len()
+    );
+    match backend {
+        Backend::Bvh => Ok(Box::new(bvh::BvhEngine::new(meshes, transforms)?)),
+        #[cfg(feature = "embree")]
+        Backend::Embree => Ok(Box::new(embree::EmbreeEngine::new(meshes, transforms)?)),
+        #[cfg(not(feature = "embree"))]
+        Backend::Embree => anyhow::bail!(
+            "this build of rangewalk has no Embree backend (built without the `embree` feature); use --backend bvh"
+        ),
+    }
+}
+
+/// Moves a ray origin off the surface it lies on so that the new ray does not
+/// hit that surface again, whatever the scene's scale.
+///
+/// The offset is relative to the magnitude of the point's coordinates (the
+/// floating-point error of a computed hit point grows with them), pushed along
+/// the geometric normal to the side `dir` leaves towards.
+pub fn offset_origin(p: Vec3, normal: Vec3, dir: Vec3) -> Vec3 {
+    // A few ulps of the largest coordinate, plus a tiny absolute floor for
+    // points near the origin.
+    const REL: f32 = 1.0 / 65536.0;
+    const ABS: f32 = 1e-30;
+    let mag = p.abs().max_element();
+    let eps = mag * REL + ABS;
+    let n = if normal.dot(dir) < 0.0 {
+        -normal
+    } else {
+        normal
+    };
+    p + n * eps
+}

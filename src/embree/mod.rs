@@ -1,0 +1,1 @@
+//! Safe wrapper around Embree 3: the only `unsafe` code touching Embree.

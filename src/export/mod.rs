@@ -1,0 +1,1 @@
+//! Scene export to other renderers, for validation.

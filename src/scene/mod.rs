@@ -1,0 +1,323 @@
+//! The scene description: geometry, materials, lights, rigid motion, cameras,
+//! view space and walk-through paths, parsed from `scene.toml` and validated.
+//!
+//! This is plain data. Runtime structures (ray engines, light samplers) are
+//! built from it by the modules that need them; time is always a parameter
+//! (`Scene::at(t)`), never state kept here.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use anyhow::{anyhow, Result};
+use glam::{Affine3A, Vec2, Vec3};
+
+use crate::accel::MeshGeometry;
+use crate::camera::{Camera, Projection};
+
+mod load;
+mod motion;
+
+pub use motion::{Keyframe, Motion};
+
+/// A validated scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The `scene.toml` this was read from (meshes are relative to its folder).
+    pub source: PathBuf,
+    pub objects: Vec<Object>,
+    pub materials: Vec<Material>,
+    /// Point lights and the sun; area lights are the objects whose material
+    /// emits.
+    pub lights: Vec<Light>,
+    pub animation: Animation,
+    pub cameras: Vec<CameraDesc>,
+    pub view_space: Option<ViewSpace>,
+    pub paths: Vec<WalkPath>,
+    /// Zero-area triangles dropped while loading.
+    pub dropped_triangles: usize,
+}
+
+/// One rigidly moving mesh with one material.
+#[derive(Clone, Debug)]
+pub struct Object {
+    pub name: String,
+    pub mesh: Mesh,
+    /// Index into `Scene::materials`.
+    pub material: usize,
+    pub motion: Motion,
+}
+
+/// Object-space triangles; `uvs`, when present, has one entry per position.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    pub uvs: Option<Vec<Vec2>>,
+}
+
+impl Mesh {
+    /// Total surface area in object space.
+    pub fn area(&self) -> f32 {
+        self.triangles.iter().map(|&t| self.triangle_area(t)).sum()
+    }
+
+    pub fn triangle_area(&self, [a, b, c]: [u32; 3]) -> f32 {
+        let (a, b, c) = (
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        );
+        0.5 * (b - a).cross(c - a).length()
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Material {
+    pub name: String,
+    pub bsdf: Bsdf,
+    pub emission: Option<Emission>,
+}
+
+/// Light leaving a surface by itself, uniform over the surface and over
+/// directions (a Lambertian emitter).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Emission {
+    /// Emitted radiance (W·sr⁻¹·m⁻², linear RGB).
+    pub radiance: Vec3,
+    /// Whether the back side (against the winding normal) emits too.
+    pub two_sided: bool,
+}
+
+/// How a surface reflects. Reflectances are linear RGB albedos, each channel
+/// in `[0, 1)`; every surface reflects on both sides.
+#[derive(Clone, Debug)]
+pub enum Bsdf {
+    Diffuse {
+        reflectance: Vec3,
+        /// Multiplies `reflectance` when present (values in `[0, 1)`).
+        texture: Option<Arc<Texture>>,
+    },
+    /// A Lambertian base plus a rough specular lobe without Fresnel; the sum
+    /// of the two reflectances stays below one.
+    Glossy {
+        diffuse: Vec3,
+        specular: Vec3,
+        /// Microfacet slope roughness `alpha` (GGX) or `alpha` of Ward.
+        roughness: f32,
+        model: GlossyModel,
+    },
+    /// Ideal specular reflection.
+    Mirror { reflectance: Vec3 },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GlossyModel {
+    Ggx,
+    Ward,
+}
+
+/// An RGB texture in linear values, addressed with wrapping `uv`.
+#[derive(Clone, Debug)]
+pub struct Texture {
+    pub source: PathBuf,
+    pub width: u32,
+    pub height: u32,
+    /// Row-major, top row first.
+    pub texels: Vec<Vec3>,
+}
+
+impl Texture {
+    /// Bilinear lookup; `v = 0` is the bottom row, as in OBJ files.
+    pub fn sample(&self, uv: Vec2) -> Vec3 {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let x = uv.x.rem_euclid(1.0) * w as f32 - 0.5;
+        let y = (1.0 - uv.y.rem_euclid(1.0)) * h as f32 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let at = |i: f32, j: f32| {
+            let i = (i as i64).rem_euclid(w as i64) as usize;
+            let j = (j as i64).rem_euclid(h as i64) as usize;
+            self.texels[j * w + i]
+        };
+        let top = at(x0, y0).lerp(at(x0 + 1.0, y0), fx);
+        let bottom = at(x0, y0 + 1.0).lerp(at(x0 + 1.0, y0 + 1.0), fx);
+        top.lerp(bottom, fy)
+    }
+}
+
+/// Lights that are not surfaces.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Light {
+    /// Isotropic point light with radiant intensity (W·sr⁻¹, RGB).
+    Point { position: Vec3, intensity: Vec3 },
+    /// A distant disk: `direction` points from the scene towards the sun.
+    Sun {
+        direction: Vec3,
+        radiance: Vec3,
+        angular_diameter_deg: f32,
+    },
+}
+
+impl Light {
+    /// Solid angle of the sun's disk, for converting its radiance to
+    /// irradiance.
+    pub fn sun_solid_angle(angular_diameter_deg: f32) -> f32 {
+        let half = (angular_diameter_deg * 0.5).to_radians();
+        2.0 * std::f32::consts::PI * (1.0 - half.cos())
+    }
+}
+
+/// The animation's time range and frame rate, in seconds and frames/s.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Animation {
+    pub start: f32,
+    pub end: f32,
+    pub fps: f32,
+}
+
+/// A named viewpoint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraDesc {
+    pub name: String,
+    pub position: Vec3,
+    /// Unit view direction.
+    pub direction: Vec3,
+    pub up: Vec3,
+    pub vfov_deg: f32,
+}
+
+impl CameraDesc {
+    /// A perspective camera with this pose and field of view.
+    pub fn perspective(&self, width: u32, height: u32) -> Result<Camera> {
+        self.with_projection(
+            Projection::Perspective {
+                vfov_deg: self.vfov_deg,
+            },
+            width,
+            height,
+        )
+    }
+
+    /// This pose with another projection (fisheye or sphere base views).
+    pub fn with_projection(
+        &self,
+        projection: Projection,
+        width: u32,
+        height: u32,
+    ) -> Result<Camera> {
+        Camera::looking(
+            self.position,
+            self.direction,
+            self.up,
+            projection,
+            width,
+            height,
+        )
+        .map_err(|e| e.context(format!("camera `{}`", self.name)))
+    }
+}
+
+/// The region the viewer may move in: a segment (1D), an axis-aligned
+/// rectangle (2D, one extent zero) or box (3D).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ViewSpace {
+    Segment { a: Vec3, b: Vec3 },
+    Rectangle { min: Vec3, max: Vec3 },
+    Box { min: Vec3, max: Vec3 },
+}
+
+impl ViewSpace {
+    /// Number of dimensions the viewer may move in.
+    pub fn dimensions(&self) -> usize {
+        match self {
+            ViewSpace::Segment { .. } => 1,
+            ViewSpace::Rectangle { .. } => 2,
+            ViewSpace::Box { .. } => 3,
+        }
+    }
+}
+
+/// A camera moving over time: keyframes interpolated linearly.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WalkPath {
+    pub name: String,
+    pub keys: Vec<PathKey>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PathKey {
+    pub time: f32,
+    pub position: Vec3,
+    pub direction: Vec3,
+    pub up: Vec3,
+    pub vfov_deg: f32,
+}
+
+impl Scene {
+    /// Reads and validates `scene.toml` and the meshes it names.
+    pub fn load(path: impl Into<PathBuf>) -> Result<Scene> {
+        load::load(path.into())
+    }
+
+    /// Every object's object-to-world transform at time `t`, in object order.
+    pub fn at(&self, t: f32) -> Vec<Affine3A> {
+        self.objects.iter().map(|o| o.motion.pose(t)).collect()
+    }
+
+    /// The object-space meshes as the ray engines take them.
+    pub fn geometry(&self) -> Vec<MeshGeometry> {
+        self.objects
+            .iter()
+            .map(|o| MeshGeometry {
+                positions: o.mesh.positions.clone(),
+                triangles: o.mesh.triangles.clone(),
+            })
+            .collect()
+    }
+
+    pub fn camera(&self, name: &str) -> Result<&CameraDesc> {
+        self.cameras.iter().find(|c| c.name == name).ok_or_else(|| {
+            let known: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
+            anyhow!(
+                "{}: no camera named `{name}` (cameras: {})",
+                self.source.display(),
+                if known.is_empty() {
+                    "none".to_string()
+                } else {
+                    known.join(", ")
+                }
+            )
+        })
+    }
+
+    pub fn material_of(&self, object: u32) -> &Material {
+        &self.materials[self.objects[object as usize].material]
+    }
+
+    /// Whether anything moves: a static scene needs a single time sample.
+    pub fn is_static(&self) -> bool {
+        self.objects.iter().all(|o| o.motion.is_static())
+    }
+
+    /// Whether any surface is glossy or a mirror: otherwise no specular rays
+    /// are needed.
+    pub fn has_specular(&self) -> bool {
+        self.materials
+            .iter()
+            .any(|m| !matches!(m.bsdf, Bsdf::Diffuse { .. }))
+    }
+
+    /// Axis-aligned bounds of the whole scene at time `t`.
+    pub fn bounds(&self, t: f32) -> (Vec3, Vec3) {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for (o, xf) in self.objects.iter().zip(self.at(t)) {
+            for &p in &o.mesh.positions {
+                let w = xf.transform_point3(p);
+                lo = lo.min(w);
+                hi = hi.max(w);
+            }
+        }
+        (lo, hi)
+    }
+}

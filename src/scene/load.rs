@@ -16,8 +16,8 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::{
-    Animation, Bsdf, CameraDesc, Emission, GlossyModel, Keyframe, Light, Material, Mesh, Motion, Object,
-    PathKey, Scene, Texture, ViewSpace, WalkPath,
+    Animation, Bsdf, CameraDesc, Emission, GlossyModel, Keyframe, Light, Material, Mesh, Motion,
+    Object, PathKey, Scene, Texture, ViewSpace, WalkPath,
 };
 
 type V3 = [f32; 3];
@@ -114,8 +114,15 @@ struct RotationToml {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields, tag = "type", rename_all = "lowercase")]
 enum LightToml {
-    Point { position: V3, intensity: V3 },
-    Sun { direction: V3, radiance: V3, angular_diameter: f32 },
+    Point {
+        position: V3,
+        intensity: V3,
+    },
+    Sun {
+        direction: V3,
+        radiance: V3,
+        angular_diameter: f32,
+    },
 }
 
 #[derive(Deserialize)]
@@ -177,9 +184,12 @@ impl Source<'_> {
 pub fn load(path: PathBuf) -> Result<Scene> {
     let text = std::fs::read_to_string(&path)
         .with_context(|| format!("cannot read scene file {}", path.display()))?;
-    let parsed: SceneToml =
-        toml::from_str(&text).map_err(|e| anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
-    let src = Source { path: &path, text: &text };
+    let parsed: SceneToml = toml::from_str(&text)
+        .map_err(|e| anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+    let src = Source {
+        path: &path,
+        text: &text,
+    };
     let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
 
     let animation = match parsed.animation {
@@ -187,11 +197,28 @@ pub fn load(path: PathBuf) -> Result<Scene> {
             let what = format!("{}: [animation]", path.display());
             finite(&what, "start", &[a.start])?;
             finite(&what, "end", &[a.end])?;
-            ensure!(a.end >= a.start, "{what}: end {} is before start {}", a.end, a.start);
-            ensure!(a.fps.is_finite() && a.fps > 0.0, "{what}: fps {} must be positive", a.fps);
-            Animation { start: a.start, end: a.end, fps: a.fps }
+            ensure!(
+                a.end >= a.start,
+                "{what}: end {} is before start {}",
+                a.end,
+                a.start
+            );
+            ensure!(
+                a.fps.is_finite() && a.fps > 0.0,
+                "{what}: fps {} must be positive",
+                a.fps
+            );
+            Animation {
+                start: a.start,
+                end: a.end,
+                fps: a.fps,
+            }
         }
-        None => Animation { start: 0.0, end: 0.0, fps: 30.0 },
+        None => Animation {
+            start: 0.0,
+            end: 0.0,
+            fps: 30.0,
+        },
     };
 
     let mut materials = Vec::new();
@@ -232,7 +259,12 @@ pub fn load(path: PathBuf) -> Result<Scene> {
         dropped_triangles += dropped;
         let material = resolve_material(&at, o, mtl_name.as_deref(), &obj, &mut materials, &dir)?;
         let motion = build_motion(&src, &at, o)?;
-        objects.push(Object { name: o.name.clone(), mesh, material, motion });
+        objects.push(Object {
+            name: o.name.clone(),
+            mesh,
+            material,
+            motion,
+        });
     }
     ensure!(
         objects.iter().any(|o| !o.mesh.triangles.is_empty()),
@@ -256,10 +288,20 @@ pub fn load(path: PathBuf) -> Result<Scene> {
         );
         let what = format!("{at}: camera `{}`", c.name);
         let (direction, up) = pose(&what, c.position, c.look_at, c.direction, c.up, c.vfov)?;
-        cameras.push(CameraDesc { name: c.name.clone(), position: c.position.into(), direction, up, vfov_deg: c.vfov });
+        cameras.push(CameraDesc {
+            name: c.name.clone(),
+            position: c.position.into(),
+            direction,
+            up,
+            vfov_deg: c.vfov,
+        });
     }
 
-    let view_space = parsed.view_space.as_ref().map(|v| build_view_space(&src.at(v), v.get_ref())).transpose()?;
+    let view_space = parsed
+        .view_space
+        .as_ref()
+        .map(|v| build_view_space(&src.at(v), v.get_ref()))
+        .transpose()?;
 
     let mut paths = Vec::new();
     for p in &parsed.paths {
@@ -280,9 +322,18 @@ pub fn load(path: PathBuf) -> Result<Scene> {
                 );
             }
             let (direction, up) = pose(&what, k.position, k.look_at, k.direction, k.up, k.vfov)?;
-            keys.push(PathKey { time: k.time, position: k.position.into(), direction, up, vfov_deg: k.vfov });
+            keys.push(PathKey {
+                time: k.time,
+                position: k.position.into(),
+                direction,
+                up,
+                vfov_deg: k.vfov,
+            });
         }
-        paths.push(WalkPath { name: p.name.clone(), keys });
+        paths.push(WalkPath {
+            name: p.name.clone(),
+            keys,
+        });
     }
 
     Ok(Scene {
@@ -299,13 +350,19 @@ pub fn load(path: PathBuf) -> Result<Scene> {
 }
 
 fn finite(what: &str, field: &str, values: &[f32]) -> Result<()> {
-    ensure!(values.iter().all(|v| v.is_finite()), "{what}: `{field}` {values:?} is not finite (NaN or infinite)");
+    ensure!(
+        values.iter().all(|v| v.is_finite()),
+        "{what}: `{field}` {values:?} is not finite (NaN or infinite)"
+    );
     Ok(())
 }
 
 fn reflectance(what: &str, field: &str, v: V3) -> Result<Vec3> {
     finite(what, field, &v)?;
-    ensure!(v.iter().all(|&c| c >= 0.0), "{what}: `{field}` {v:?} has a negative channel");
+    ensure!(
+        v.iter().all(|&c| c >= 0.0),
+        "{what}: `{field}` {v:?} has a negative channel"
+    );
     ensure!(
         v.iter().all(|&c| c < 1.0),
         "{what}: `{field}` {v:?} has a channel >= 1; a reflectance must stay below 1 to conserve energy"
@@ -316,13 +373,25 @@ fn reflectance(what: &str, field: &str, v: V3) -> Result<Vec3> {
 fn emission(what: &str, e: Option<V3>, two_sided: bool) -> Result<Option<Emission>> {
     let Some(e) = e else { return Ok(None) };
     finite(what, "emission", &e)?;
-    ensure!(e.iter().all(|&c| c >= 0.0), "{what}: `emission` {e:?} has a negative channel");
-    Ok(Some(Emission { radiance: e.into(), two_sided }))
+    ensure!(
+        e.iter().all(|&c| c >= 0.0),
+        "{what}: `emission` {e:?} has a negative channel"
+    );
+    Ok(Some(Emission {
+        radiance: e.into(),
+        two_sided,
+    }))
 }
 
 fn build_material(at: &str, m: &MaterialToml, dir: &Path) -> Result<Material> {
     Ok(match m {
-        MaterialToml::Diffuse { name, reflectance: r, texture, emission: e, two_sided_emission } => {
+        MaterialToml::Diffuse {
+            name,
+            reflectance: r,
+            texture,
+            emission: e,
+            two_sided_emission,
+        } => {
             let what = format!("{at}: material `{name}`");
             let texture = texture
                 .as_ref()
@@ -330,11 +399,22 @@ fn build_material(at: &str, m: &MaterialToml, dir: &Path) -> Result<Material> {
                 .transpose()?;
             Material {
                 name: name.clone(),
-                bsdf: Bsdf::Diffuse { reflectance: reflectance(&what, "reflectance", *r)?, texture },
+                bsdf: Bsdf::Diffuse {
+                    reflectance: reflectance(&what, "reflectance", *r)?,
+                    texture,
+                },
                 emission: emission(&what, *e, *two_sided_emission)?,
             }
         }
-        MaterialToml::Glossy { name, diffuse, specular, roughness, model, emission: e, two_sided_emission } => {
+        MaterialToml::Glossy {
+            name,
+            diffuse,
+            specular,
+            roughness,
+            model,
+            emission: e,
+            two_sided_emission,
+        } => {
             let what = format!("{at}: material `{name}`");
             let d = reflectance(&what, "diffuse", *diffuse)?;
             let s = reflectance(&what, "specular", *specular)?;
@@ -351,19 +431,31 @@ fn build_material(at: &str, m: &MaterialToml, dir: &Path) -> Result<Material> {
             let model = match model.as_str() {
                 "ggx" => GlossyModel::Ggx,
                 "ward" => GlossyModel::Ward,
-                other => bail!("{what}: unknown glossy `model` \"{other}\" (expected \"ggx\" or \"ward\")"),
+                other => bail!(
+                    "{what}: unknown glossy `model` \"{other}\" (expected \"ggx\" or \"ward\")"
+                ),
             };
             Material {
                 name: name.clone(),
-                bsdf: Bsdf::Glossy { diffuse: d, specular: s, roughness: *roughness, model },
+                bsdf: Bsdf::Glossy {
+                    diffuse: d,
+                    specular: s,
+                    roughness: *roughness,
+                    model,
+                },
                 emission: emission(&what, *e, *two_sided_emission)?,
             }
         }
-        MaterialToml::Mirror { name, reflectance: r } => {
+        MaterialToml::Mirror {
+            name,
+            reflectance: r,
+        } => {
             let what = format!("{at}: material `{name}`");
             Material {
                 name: name.clone(),
-                bsdf: Bsdf::Mirror { reflectance: reflectance(&what, "reflectance", *r)? },
+                bsdf: Bsdf::Mirror {
+                    reflectance: reflectance(&what, "reflectance", *r)?,
+                },
                 emission: None,
             }
         }
@@ -373,7 +465,9 @@ fn build_material(at: &str, m: &MaterialToml, dir: &Path) -> Result<Material> {
 fn read_texture(what: &str, path: &Path) -> Result<Arc<Texture>> {
     let tex = crate::image::read_texture(path).with_context(|| format!("{what}: texture"))?;
     ensure!(
-        tex.texels.iter().all(|t| t.is_finite() && t.min_element() >= 0.0 && t.max_element() < 1.0),
+        tex.texels
+            .iter()
+            .all(|t| t.is_finite() && t.min_element() >= 0.0 && t.max_element() < 1.0),
         "{what}: texture {} has texels outside [0, 1); a reflectance must stay below 1",
         path.display()
     );
@@ -390,18 +484,30 @@ fn resolve_material(
     materials: &mut Vec<Material>,
     dir: &Path,
 ) -> Result<usize> {
-    let known = |materials: &[Material]| materials.iter().map(|m| m.name.clone()).collect::<Vec<_>>().join(", ");
+    let known = |materials: &[Material]| {
+        materials
+            .iter()
+            .map(|m| m.name.clone())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
     if let Some(name) = &o.material {
-        return materials.iter().position(|m| &m.name == name).ok_or_else(|| {
-            anyhow!(
-                "{at}: object `{}` uses unknown material `{name}` (materials: {})",
-                o.name,
-                known(materials)
-            )
-        });
+        return materials
+            .iter()
+            .position(|m| &m.name == name)
+            .ok_or_else(|| {
+                anyhow!(
+                    "{at}: object `{}` uses unknown material `{name}` (materials: {})",
+                    o.name,
+                    known(materials)
+                )
+            });
     }
     let Some(mtl_name) = mtl_name else {
-        bail!("{at}: object `{}` has no `material` and its mesh names no MTL material", o.name);
+        bail!(
+            "{at}: object `{}` has no `material` and its mesh names no MTL material",
+            o.name
+        );
     };
     if let Some(i) = materials.iter().position(|m| m.name == mtl_name) {
         return Ok(i);
@@ -410,10 +516,18 @@ fn resolve_material(
         .materials
         .iter()
         .find(|m| m.name == mtl_name)
-        .ok_or_else(|| anyhow!("{at}: object `{}`: MTL material `{mtl_name}` is not defined", o.name))?;
+        .ok_or_else(|| {
+            anyhow!(
+                "{at}: object `{}`: MTL material `{mtl_name}` is not defined",
+                o.name
+            )
+        })?;
     let what = format!("{}: MTL material `{mtl_name}`", obj.path.display());
     let texture = match &mtl.diffuse_texture {
-        Some(t) => Some(read_texture(&what, &obj.path.parent().unwrap_or(dir).join(t))?),
+        Some(t) => Some(read_texture(
+            &what,
+            &obj.path.parent().unwrap_or(dir).join(t),
+        )?),
         None => None,
     };
     let ke = mtl
@@ -424,7 +538,10 @@ fn resolve_material(
         .filter(|e| e.iter().any(|&c| c > 0.0));
     materials.push(Material {
         name: mtl_name.to_string(),
-        bsdf: Bsdf::Diffuse { reflectance: reflectance(&what, "Kd", mtl.diffuse.unwrap_or([0.0; 3]))?, texture },
+        bsdf: Bsdf::Diffuse {
+            reflectance: reflectance(&what, "Kd", mtl.diffuse.unwrap_or([0.0; 3]))?,
+            texture,
+        },
         emission: emission(&what, ke, false)?,
     });
     Ok(materials.len() - 1)
@@ -436,7 +553,10 @@ fn parse_floats(what: &str, field: &str, s: &str) -> Result<V3> {
         .map(|x| x.parse::<f32>())
         .collect::<Result<_, _>>()
         .map_err(|_| anyhow!("{what}: `{field}` \"{s}\" is not three numbers"))?;
-    ensure!(v.len() == 3, "{what}: `{field}` \"{s}\" is not three numbers");
+    ensure!(
+        v.len() == 3,
+        "{what}: `{field}` \"{s}\" is not three numbers"
+    );
     Ok([v[0], v[1], v[2]])
 }
 
@@ -463,45 +583,87 @@ fn build_motion(src: &Source, at: &str, o: &ObjectToml) -> Result<Motion> {
                 finite(&kat, "rotate.axis", &r.axis)?;
                 finite(&kat, "rotate.degrees", &[r.degrees])?;
                 let axis = Vec3::from(r.axis).normalize_or_zero();
-                ensure!(axis != Vec3::ZERO, "{kat}: `rotate.axis` {:?} has no length", r.axis);
+                ensure!(
+                    axis != Vec3::ZERO,
+                    "{kat}: `rotate.axis` {:?} has no length",
+                    r.axis
+                );
                 Quat::from_axis_angle(axis, r.degrees.to_radians())
             }
             None => Quat::IDENTITY,
         };
         let scale = k.scale.unwrap_or(1.0);
-        ensure!(scale.is_finite() && scale > 0.0, "{kat}: `scale` {scale} must be a positive number");
-        keys.push(Keyframe { time: k.time, translation: k.translate.into(), rotation, scale });
+        ensure!(
+            scale.is_finite() && scale > 0.0,
+            "{kat}: `scale` {scale} must be a positive number"
+        );
+        keys.push(Keyframe {
+            time: k.time,
+            translation: k.translate.into(),
+            rotation,
+            scale,
+        });
     }
     Ok(Motion::with_pivot(keys, pivot.into()))
 }
 
 fn build_light(at: &str, l: &LightToml) -> Result<Light> {
     Ok(match l {
-        LightToml::Point { position, intensity } => {
+        LightToml::Point {
+            position,
+            intensity,
+        } => {
             let what = format!("{at}: point light");
             finite(&what, "position", position)?;
             finite(&what, "intensity", intensity)?;
-            ensure!(intensity.iter().all(|&c| c >= 0.0), "{what}: `intensity` {intensity:?} has a negative channel");
-            Light::Point { position: (*position).into(), intensity: (*intensity).into() }
+            ensure!(
+                intensity.iter().all(|&c| c >= 0.0),
+                "{what}: `intensity` {intensity:?} has a negative channel"
+            );
+            Light::Point {
+                position: (*position).into(),
+                intensity: (*intensity).into(),
+            }
         }
-        LightToml::Sun { direction, radiance, angular_diameter } => {
+        LightToml::Sun {
+            direction,
+            radiance,
+            angular_diameter,
+        } => {
             let what = format!("{at}: sun");
             finite(&what, "direction", direction)?;
             finite(&what, "radiance", radiance)?;
             let d = Vec3::from(*direction).normalize_or_zero();
-            ensure!(d != Vec3::ZERO, "{what}: `direction` {direction:?} has no length");
-            ensure!(radiance.iter().all(|&c| c >= 0.0), "{what}: `radiance` {radiance:?} has a negative channel");
+            ensure!(
+                d != Vec3::ZERO,
+                "{what}: `direction` {direction:?} has no length"
+            );
+            ensure!(
+                radiance.iter().all(|&c| c >= 0.0),
+                "{what}: `radiance` {radiance:?} has a negative channel"
+            );
             ensure!(
                 angular_diameter.is_finite() && *angular_diameter > 0.0 && *angular_diameter < 90.0,
                 "{what}: `angular_diameter` {angular_diameter} must lie in (0, 90) degrees"
             );
-            Light::Sun { direction: d, radiance: (*radiance).into(), angular_diameter_deg: *angular_diameter }
+            Light::Sun {
+                direction: d,
+                radiance: (*radiance).into(),
+                angular_diameter_deg: *angular_diameter,
+            }
         }
     })
 }
 
 /// Validates a camera pose and returns its unit direction and up vector.
-fn pose(what: &str, position: V3, look_at: Option<V3>, direction: Option<V3>, up: V3, vfov: f32) -> Result<(Vec3, Vec3)> {
+fn pose(
+    what: &str,
+    position: V3,
+    look_at: Option<V3>,
+    direction: Option<V3>,
+    up: V3,
+    vfov: f32,
+) -> Result<(Vec3, Vec3)> {
     finite(what, "position", &position)?;
     finite(what, "up", &up)?;
     let dir = match (look_at, direction) {
@@ -516,13 +678,19 @@ fn pose(what: &str, position: V3, look_at: Option<V3>, direction: Option<V3>, up
         _ => bail!("{what}: give exactly one of `look_at` and `direction`"),
     };
     let dir = dir.normalize_or_zero();
-    ensure!(dir != Vec3::ZERO, "{what}: the view direction has no length (`look_at` equals `position`?)");
+    ensure!(
+        dir != Vec3::ZERO,
+        "{what}: the view direction has no length (`look_at` equals `position`?)"
+    );
     let up = Vec3::from(up);
     ensure!(
         dir.cross(up).length() > 1e-6 * up.length().max(f32::MIN_POSITIVE),
         "{what}: `up` {up} is parallel to the view direction {dir}"
     );
-    ensure!(vfov.is_finite() && vfov > 0.0 && vfov < 180.0, "{what}: `vfov` {vfov} must lie in (0, 180) degrees");
+    ensure!(
+        vfov.is_finite() && vfov > 0.0 && vfov < 180.0,
+        "{what}: `vfov` {vfov} must lie in (0, 180) degrees"
+    );
     Ok((dir, up))
 }
 
@@ -533,19 +701,33 @@ fn build_view_space(at: &str, v: &ViewSpaceToml) -> Result<ViewSpace> {
             finite(&what, "a", a)?;
             finite(&what, "b", b)?;
             ensure!(a != b, "{what}: segment end points are equal");
-            ViewSpace::Segment { a: (*a).into(), b: (*b).into() }
+            ViewSpace::Segment {
+                a: (*a).into(),
+                b: (*b).into(),
+            }
         }
         ViewSpaceToml::Rectangle { min, max } | ViewSpaceToml::Box { min, max } => {
             finite(&what, "min", min)?;
             finite(&what, "max", max)?;
             let (lo, hi) = (Vec3::from(*min), Vec3::from(*max));
-            ensure!(lo.cmple(hi).all(), "{what}: `min` {lo} is not below `max` {hi} on every axis");
+            ensure!(
+                lo.cmple(hi).all(),
+                "{what}: `min` {lo} is not below `max` {hi} on every axis"
+            );
             let flat = (hi - lo).to_array().iter().filter(|&&e| e == 0.0).count();
             if matches!(v, ViewSpaceToml::Rectangle { .. }) {
-                ensure!(flat == 1, "{what}: a rectangle must have exactly one zero extent, `max - min` = {}", hi - lo);
+                ensure!(
+                    flat == 1,
+                    "{what}: a rectangle must have exactly one zero extent, `max - min` = {}",
+                    hi - lo
+                );
                 ViewSpace::Rectangle { min: lo, max: hi }
             } else {
-                ensure!(flat == 0, "{what}: a box must have extent on every axis, `max - min` = {}", hi - lo);
+                ensure!(
+                    flat == 0,
+                    "{what}: a box must have extent on every axis, `max - min` = {}",
+                    hi - lo
+                );
                 ViewSpace::Box { min: lo, max: hi }
             }
         }
@@ -561,12 +743,26 @@ struct ObjFile {
 
 impl ObjFile {
     fn read(path: &Path) -> Result<Self> {
-        ensure!(path.is_file(), "mesh file {} does not exist", path.display());
-        let opts = tobj::LoadOptions { single_index: true, triangulate: true, ignore_points: true, ignore_lines: true };
-        let (models, materials) =
-            tobj::load_obj(path, &opts).map_err(|e| anyhow!("cannot read mesh {}: {e}", path.display()))?;
-        let materials = materials.map_err(|e| anyhow!("cannot read the MTL file of {}: {e}", path.display()))?;
-        Ok(Self { path: path.to_path_buf(), models, materials })
+        ensure!(
+            path.is_file(),
+            "mesh file {} does not exist",
+            path.display()
+        );
+        let opts = tobj::LoadOptions {
+            single_index: true,
+            triangulate: true,
+            ignore_points: true,
+            ignore_lines: true,
+        };
+        let (models, materials) = tobj::load_obj(path, &opts)
+            .map_err(|e| anyhow!("cannot read mesh {}: {e}", path.display()))?;
+        let materials = materials
+            .map_err(|e| anyhow!("cannot read the MTL file of {}: {e}", path.display()))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            models,
+            materials,
+        })
     }
 
     /// The triangles of `group` (or all groups) with zero-area triangles
@@ -599,9 +795,15 @@ impl ObjFile {
                 self.path.display(),
                 m.name
             );
-            mesh.positions.extend(p.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])));
+            mesh.positions
+                .extend(p.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])));
             if with_uvs {
-                uvs.extend(m.mesh.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], c[1])));
+                uvs.extend(
+                    m.mesh
+                        .texcoords
+                        .chunks_exact(2)
+                        .map(|c| Vec2::new(c[0], c[1])),
+                );
             }
             for t in m.mesh.indices.chunks_exact(3) {
                 let tri = [base + t[0], base + t[1], base + t[2]];
@@ -612,7 +814,11 @@ impl ObjFile {
                 }
             }
             if mtl.is_none() {
-                mtl = m.mesh.material_id.and_then(|i| self.materials.get(i)).map(|x| x.name.clone());
+                mtl = m
+                    .mesh
+                    .material_id
+                    .and_then(|i| self.materials.get(i))
+                    .map(|x| x.name.clone());
             }
         }
         mesh.uvs = with_uvs.then_some(uvs);
@@ -697,23 +903,50 @@ vfov = 40
     #[test]
     fn bad_inputs_name_what_is_wrong() {
         let cases: &[(&str, &str, &[&str])] = &[
-            ("reflectance = [0.5, 0.5, 0.5]", "reflectance = [1.0, 0.5, 0.5]", &["white", ">= 1", "scene.toml:7"]),
-            ("reflectance = [0.5, 0.5, 0.5]", "reflectance = [nan, 0.5, 0.5]", &["reflectance", "not finite"]),
-            ("material = \"white\"", "material = \"gold\"", &["gold", "white", "quad"]),
-            ("translate = [1, 0, 0]", "translate = [inf, 0, 0]", &["translate", "not finite"]),
+            (
+                "reflectance = [0.5, 0.5, 0.5]",
+                "reflectance = [1.0, 0.5, 0.5]",
+                &["white", ">= 1", "scene.toml:7"],
+            ),
+            (
+                "reflectance = [0.5, 0.5, 0.5]",
+                "reflectance = [nan, 0.5, 0.5]",
+                &["reflectance", "not finite"],
+            ),
+            (
+                "material = \"white\"",
+                "material = \"gold\"",
+                &["gold", "white", "quad"],
+            ),
+            (
+                "translate = [1, 0, 0]",
+                "translate = [inf, 0, 0]",
+                &["translate", "not finite"],
+            ),
             ("time = 1\n", "time = -1\n", &["increasing", "keyframe"]),
-            ("mesh = \"m.obj\"", "mesh = \"missing.obj\"", &["missing.obj", "does not exist"]),
+            (
+                "mesh = \"m.obj\"",
+                "mesh = \"missing.obj\"",
+                &["missing.obj", "does not exist"],
+            ),
             ("group = \"quad\"", "group = \"sliver\"", &["empty"]),
             ("group = \"quad\"", "group = \"cube\"", &["cube", "quad"]),
             ("vfov = 40", "vfov = 400", &["vfov", "main"]),
             ("fps = 30", "fps = 30\nspeed = 2", &["speed"]),
             ("type = \"diffuse\"", "type = \"velvet\"", &["velvet"]),
-            ("look_at = [0.5, 0.5, 0]", "look_at = [0.5, 0.5, -3]", &["direction"]),
+            (
+                "look_at = [0.5, 0.5, 0]",
+                "look_at = [0.5, 0.5, -3]",
+                &["direction"],
+            ),
         ];
         for (from, to, needles) in cases {
             assert!(GOOD.contains(from), "{from}");
             let msg = load_err(&GOOD.replacen(from, to, 1));
-            assert!(msg.contains("scene.toml") || msg.contains(".obj"), "no file named in: {msg}");
+            assert!(
+                msg.contains("scene.toml") || msg.contains(".obj"),
+                "no file named in: {msg}"
+            );
             for n in *needles {
                 assert!(msg.contains(n), "`{n}` missing from: {msg}");
             }
@@ -725,14 +958,21 @@ vfov = 40
         assert!(load_err("[[objects]\n").contains("scene.toml"));
         assert!(load_err("").contains("empty"));
         let dir = tempfile::tempdir().unwrap();
-        let err = format!("{:#}", Scene::load(dir.path().join("none.toml")).unwrap_err());
+        let err = format!(
+            "{:#}",
+            Scene::load(dir.path().join("none.toml")).unwrap_err()
+        );
         assert!(err.contains("none.toml"), "{err}");
     }
 
     #[test]
     fn nan_in_obj_is_an_error() {
         let (d, path) = scene_dir(GOOD);
-        std::fs::write(d.path().join("m.obj"), "o quad\nv 0 0 0\nv nan 0 0\nv 1 1 0\nf 1 2 3\n").unwrap();
+        std::fs::write(
+            d.path().join("m.obj"),
+            "o quad\nv 0 0 0\nv nan 0 0\nv 1 1 0\nf 1 2 3\n",
+        )
+        .unwrap();
         let msg = format!("{:#}", Scene::load(path).unwrap_err());
         assert!(msg.contains("m.obj") && msg.contains("finite"), "{msg}");
     }

@@ -77,7 +77,9 @@ impl Motion {
                 scale: a.scale + (b.scale - a.scale) * s,
             }
         };
-        Affine3A::from_translation(self.pivot) * key.transform() * Affine3A::from_translation(-self.pivot)
+        Affine3A::from_translation(self.pivot)
+            * key.transform()
+            * Affine3A::from_translation(-self.pivot)
     }
 }
 
@@ -113,10 +115,16 @@ mod tests {
     #[test]
     fn rotation_about_pivot_keeps_the_pivot_fixed_between_keys() {
         let pivot = Vec3::new(368.5, 0.0, 351.25);
-        let m = Motion::with_pivot(vec![key(0.0, 0.0, 0.0, 1.0), key(1.0, 0.0, 30.0, 1.0)], pivot);
+        let m = Motion::with_pivot(
+            vec![key(0.0, 0.0, 0.0, 1.0), key(1.0, 0.0, 30.0, 1.0)],
+            pivot,
+        );
         for t in [0.0, 0.25, 0.5, 1.0] {
             let p = m.pose(t).transform_point3(pivot + Vec3::Y * 100.0);
-            assert!((p - (pivot + Vec3::Y * 100.0)).length() < 1e-3, "t={t}: {p}");
+            assert!(
+                (p - (pivot + Vec3::Y * 100.0)).length() < 1e-3,
+                "t={t}: {p}"
+            );
         }
         let corner = pivot + Vec3::X * 10.0;
         let moved = m.pose(0.5).transform_point3(corner) - pivot;

@@ -280,7 +280,7 @@ mod tests {
             let expected_n = (world[1] - world[0]).cross(world[2] - world[0]).normalize();
             let target = world[0] * 0.2 + world[1] * 0.3 + world[2] * 0.5;
             let origin = target + expected_n * 3.0 + Vec3::new(0.1, -0.2, 0.05);
-            let e = engine(&[slanted.clone()], &[xfm]);
+            let e = engine(std::slice::from_ref(&slanted), &[xfm]);
             let ray = Ray::new(origin, (target - origin) * 0.5);
             let hit = e
                 .intersect(&ray)

@@ -410,3 +410,70 @@ pub fn ray_hit(r: &Ray) -> raw::RTCRayHit {
         },
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn embree_errors_carry_embree_message() {
+        let device = Device::new().unwrap();
+        let geometry =
+            GeometryHandle::new(&device, raw::RTCGeometryType::RTC_GEOMETRY_TYPE_TRIANGLE).unwrap();
+        // SAFETY: a valid geometry; 1000 time steps exceed Embree's limit
+        // (129), which it reports as an invalid argument.
+        unsafe { raw::rtcSetGeometryTimeStepCount(geometry.0.as_ptr(), 1000) };
+        let msg = format!(
+            "{:#}",
+            device.check(|| "set 1000 time steps".into()).unwrap_err()
+        );
+        assert!(msg.contains("set 1000 time steps"), "{msg}");
+        assert!(msg.contains("invalid argument"), "{msg}");
+        assert!(
+            msg.contains("number of time steps is out of range"),
+            "{msg}"
+        );
+        // Through the wrapper: Embree's own message reaches the caller.
+        let err = SceneHandle::new(&device, raw::RTCBuildQuality(99))
+            .err()
+            .expect("build quality 99 does not exist");
+        let msg = format!("{err:#}");
+        assert!(msg.contains("invalid build quality"), "{msg}");
+        // Each error was consumed: the next call on this thread is clean.
+        assert!(SceneHandle::new(&device, raw::RTCBuildQuality::RTC_BUILD_QUALITY_LOW).is_ok());
+    }
+
+    #[test]
+    fn errors_stay_on_the_thread_that_caused_them() {
+        let device = Device::new().unwrap();
+        let failing = device.clone();
+        std::thread::spawn(move || {
+            // SAFETY: a valid device and an out-of-range build quality, which
+            // Embree rejects with an error recorded for this thread only.
+            let scene = unsafe {
+                let scene = raw::rtcNewScene(failing.as_raw());
+                raw::rtcSetSceneBuildQuality(scene, raw::RTCBuildQuality(99));
+                scene
+            };
+            assert!(failing.check(|| "set quality 99".into()).is_err());
+            // SAFETY: releases the scene created above.
+            unsafe { raw::rtcReleaseScene(scene) };
+        })
+        .join()
+        .unwrap();
+        assert!(device.check(|| "nothing".into()).is_ok());
+    }
+
+    #[test]
+    fn non_finite_transforms_are_refused() {
+        let device = Device::new().unwrap();
+        let mesh = MeshGeometry {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            triangles: vec![[0, 1, 2]],
+        };
+        let mut scene = InstancedScene::new(&device, &[mesh], &[Affine3A::IDENTITY]).unwrap();
+        let bad = Affine3A::from_translation(Vec3::new(f32::NAN, 0.0, 0.0));
+        let msg = format!("{:#}", scene.set_transforms(&[bad]).unwrap_err());
+        assert!(msg.contains("transform 0"), "{msg}");
+    }
+}

@@ -57,8 +57,12 @@ fn generate_bindings(include: &Path, header: &Path) {
         .derive_default(true)
         .parse_callbacks(Box::new(bindgen::CargoCallbacks::new()));
     // bindgen panics (rather than returning an error) when it cannot load
-    // libclang; turn that into the one sentence a user can act on.
+    // libclang; turn that into the one sentence a user can act on, with the
+    // default hook silenced so its own report does not come first.
+    let hook = panic::take_hook();
+    panic::set_hook(Box::new(|_| {}));
     let generated = panic::catch_unwind(panic::AssertUnwindSafe(|| builder.generate()));
+    panic::set_hook(hook);
     let bindings = match generated {
         Ok(Ok(bindings)) => bindings,
         Ok(Err(e)) => panic!("bindgen failed on {}: {e}", header.display()),

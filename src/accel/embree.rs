@@ -66,6 +66,20 @@ impl EmbreeEngine {
     }
 }
 
+/// Whether Embree's 16-ray packet traversal pays off for these rays: all
+/// directions within about 25 degrees of the first. Measured on 512x512 rays
+/// over 800k triangles, packets were 1.5x faster than single rays for camera
+/// rays and 2x slower for random rays; short tails stay single too.
+fn coherent(rays: &[Ray]) -> bool {
+    const MIN_COS: f32 = 0.9;
+    const MIN_LANES: usize = PACKET / 2;
+    let d0 = rays[0].dir.normalize_or_zero();
+    rays.len() >= MIN_LANES
+        && rays
+            .iter()
+            .all(|r| r.dir.normalize_or_zero().dot(d0) >= MIN_COS)
+}
+
 /// Loads up to [`PACKET`] rays into the lanes of a packet; returns the lanes'
 /// validity mask.
 fn load_packet(rays: &[Ray], packet: &mut RTCRay16) -> Valid16 {
@@ -115,8 +129,8 @@ impl RayEngine for EmbreeEngine {
         r.tfar == f32::NEG_INFINITY
     }
 
-    /// Traces 16-ray packets: on coherent rays (camera, shadow rays to one
-    /// light) Embree shares traversal work between the lanes.
+    /// Traces each group of 16 coherent rays as one packet, the rest one by
+    /// one (see [`coherent`]).
     fn intersect_batch(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
         assert_eq!(
             rays.len(),
@@ -125,6 +139,12 @@ impl RayEngine for EmbreeEngine {
         );
         let mut packet = RTCRayHit16::default();
         for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
+            if !coherent(rays) {
+                for (r, o) in rays.iter().zip(out) {
+                    *o = self.intersect(r);
+                }
+                continue;
+            }
             let valid = load_packet(rays, &mut packet.ray);
             packet.hit.geomID = [INVALID_ID; PACKET];
             self.scene.intersect16(&valid, &mut packet, true);
@@ -152,6 +172,12 @@ impl RayEngine for EmbreeEngine {
         );
         let mut packet = RTCRay16::default();
         for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
+            if !coherent(rays) {
+                for (r, o) in rays.iter().zip(out) {
+                    *o = self.occluded(r);
+                }
+                continue;
+            }
             let valid = load_packet(rays, &mut packet);
             self.scene.occluded16(&valid, &mut packet, true);
             for (k, o) in out.iter_mut().enumerate() {
@@ -526,20 +552,38 @@ mod tests {
         let mut rng = Rng(11);
         let (meshes, xfms) = random_scene(&mut rng);
         let e = engine(&meshes, &xfms);
-        // 1000 is not a multiple of the packet size: the last packet is partial.
-        let rays = random_rays(&mut rng, 1000);
-        let mut hits = vec![None; rays.len()];
-        let mut blocked = vec![false; rays.len()];
-        e.intersect_batch(&rays, &mut hits);
-        e.occluded_batch(&rays, &mut blocked);
-        for (i, ray) in rays.iter().enumerate() {
-            assert_eq!(hits[i], e.intersect(ray), "ray {i}: {ray:?}");
-            assert_eq!(blocked[i], e.occluded(ray), "ray {i}: {ray:?}");
+        // A camera-like fan, one image row per packet: 1000 = 62 x 16 + 8,
+        // so the last packet has inactive lanes. Every third ray ends early.
+        let origin = Vec3::new(0.2, -0.1, 4.0);
+        let fan: Vec<Ray> = (0..1000)
+            .map(|i| {
+                let target = Vec3::new(
+                    (i % 16) as f32 / 20.0 - 0.4,
+                    (i / 16) as f32 / 20.0 - 1.5,
+                    0.0,
+                );
+                let tmax = if i % 3 == 0 { 0.9 } else { f32::INFINITY };
+                Ray::segment(origin, target - origin, tmax)
+            })
+            .collect();
+        assert!(fan.chunks(PACKET).all(coherent));
+        let random = random_rays(&mut rng, 1000);
+        assert!(!random.chunks(PACKET).any(coherent));
+        for rays in [fan, random] {
+            let mut hits = vec![None; rays.len()];
+            let mut blocked = vec![false; rays.len()];
+            e.intersect_batch(&rays, &mut hits);
+            e.occluded_batch(&rays, &mut blocked);
+            for (i, ray) in rays.iter().enumerate() {
+                assert_eq!(hits[i], e.intersect(ray), "ray {i}: {ray:?}");
+                assert_eq!(blocked[i], e.occluded(ray), "ray {i}: {ray:?}");
+            }
+            let n = hits.iter().filter(|h| h.is_some()).count() as u32;
+            assert!(n > 100, "only {n} hits: the comparison says little");
+            assert_eq!(e.bare_intersect(&rays), n);
+            let b = blocked.iter().filter(|&&b| b).count() as u32;
+            assert_eq!(e.bare_occluded(&rays), b);
         }
-        let n = hits.iter().filter(|h| h.is_some()).count() as u32;
-        assert_eq!(e.bare_intersect(&rays), n);
-        let b = blocked.iter().filter(|&&b| b).count() as u32;
-        assert_eq!(e.bare_occluded(&rays), b);
     }
 
     #[test]

@@ -21,12 +21,13 @@ namespace {
     throw std::runtime_error(message);
 }
 
-// Creates a writer for `path` and opens it with `spec`.
-std::unique_ptr<OIIO::ImageOutput> open_output(const std::string &path,
+// Creates a writer of the named format (not guessed from the file name, so
+// temporary names need no particular extension) and opens `path` with `spec`.
+std::unique_ptr<OIIO::ImageOutput> open_output(const std::string &path, const char *format,
                                                const OIIO::ImageSpec &spec) {
-    auto out = OIIO::ImageOutput::create(path);
+    auto out = OIIO::ImageOutput::create(format);
     if (!out)
-        fail(path, "no image writer for this file name", OIIO::geterror());
+        fail(path, std::string("no ") + format + " writer", OIIO::geterror());
     if (!out->open(path, spec))
         fail(path, "cannot open for writing", out->geterror());
     return out;
@@ -76,7 +77,7 @@ Attribute get_attribute(const OIIO::ParamValue &p, bool &known) {
 
 }  // namespace
 
-void write_image(rust::Str path_str, const Raster &image) {
+void write_image(rust::Str path_str, rust::Str format, const Raster &image) {
     std::string path(path_str);
     size_t n = size_t(image.width) * image.height;
     size_t nch = image.channels.size();
@@ -95,7 +96,8 @@ void write_image(rust::Str path_str, const Raster &image) {
     }
     for (const Attribute &a : image.attributes)
         put_attribute(spec, a);
-    spec.attribute("compression", "zip");
+    if (std::string(format) == "openexr")
+        spec.attribute("compression", "zip");
 
     // Both sample types are four bytes, so the file's native pixel layout
     // is a plain interleave of the 32-bit words.
@@ -105,7 +107,7 @@ void write_image(rust::Str path_str, const Raster &image) {
         for (size_t i = 0; i < n; ++i)
             pixels[i * nch + c] = data[i];
     }
-    auto out = open_output(path, spec);
+    auto out = open_output(path, std::string(format).c_str(), spec);
     bool ok = out->write_image(OIIO::TypeUnknown, pixels.data());
     finish(*out, path, ok);
 }
@@ -118,7 +120,7 @@ void write_rgb8(rust::Str path_str, uint32_t width, uint32_t height,
                        "x" + std::to_string(height) + " RGB pixels",
              "");
     OIIO::ImageSpec spec(int(width), int(height), 3, OIIO::TypeUInt8);
-    auto out = open_output(path, spec);
+    auto out = open_output(path, "png", spec);
     bool ok = out->write_image(OIIO::TypeUInt8, rgb.data());
     finish(*out, path, ok);
 }

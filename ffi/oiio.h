@@ -11,11 +11,11 @@ namespace oiio {
 
 struct Raster;
 
-// Writes every channel of `image` and its attributes to `path`, in the
-// format OpenImageIO picks from the file extension (.exr, .hdr, ...).
-void write_image(rust::Str path, const Raster &image);
+// Writes every channel of `image` and its attributes to `path` in the
+// named OpenImageIO format ("openexr", "hdr", ...).
+void write_image(rust::Str path, rust::Str format, const Raster &image);
 
-// Writes 8-bit RGB pixels (row-major, top row first) to `path`.
+// Writes 8-bit RGB pixels (row-major, top row first) to `path` as PNG.
 void write_rgb8(rust::Str path, uint32_t width, uint32_t height,
                 rust::Slice<const uint8_t> rgb);
 

@@ -92,14 +92,14 @@ impl RangeImage {
     }
 }
 
-/// Writes a range image as OpenEXR.
+/// Writes a range image as OpenEXR (whatever the file's extension).
 pub fn write_exr(path: impl AsRef<Path>, image: &RangeImage) -> Result<()> {
     #[cfg(feature = "oiio")]
     {
         let path = path.as_ref();
         let planes = planes::Planes::from_range(image)
             .with_context(|| format!("writing {}", path.display()))?;
-        write_atomically(path, |tmp| oiio::write(tmp, &planes))
+        write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Exr, &planes))
     }
     #[cfg(not(feature = "oiio"))]
     exr_io::write(path, image)
@@ -125,7 +125,7 @@ pub fn write_hdr(path: impl AsRef<Path>, width: u32, height: u32, radiance: &[Ve
         let path = path.as_ref();
         let planes = rgb_planes(width, height, radiance)
             .with_context(|| format!("writing {}", path.display()))?;
-        write_atomically(path, |tmp| oiio::write(tmp, &planes))
+        write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Hdr, &planes))
     }
     #[cfg(not(feature = "oiio"))]
     rgbe::write(path, width, height, radiance)
@@ -207,8 +207,8 @@ fn rgb_planes(width: u32, height: u32, radiance: &[Vec3]) -> Result<planes::Plan
 }
 
 /// Runs `write` on a fresh hidden file in the target's directory and renames
-/// it over `target` on success; removes it on failure. The temporary name
-/// keeps the target's extension, from which OpenImageIO picks the format.
+/// it over `target` on success; removes it on failure. Every writer names
+/// its format explicitly, so the temporary name needs no extension.
 fn write_atomically(target: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let name = target
@@ -221,10 +221,6 @@ fn write_atomically(target: &Path, write: impl FnOnce(&Path) -> Result<()>) -> R
         std::process::id(),
         COUNTER.fetch_add(1, Ordering::Relaxed)
     ));
-    if let Some(ext) = target.extension() {
-        tmp_name.push(".");
-        tmp_name.push(ext);
-    }
     let tmp = target.with_file_name(tmp_name);
     let result = write(&tmp).and_then(|()| {
         std::fs::rename(&tmp, target)

@@ -47,7 +47,7 @@ mod ffi {
     unsafe extern "C++" {
         include!("rangewalk/ffi/oiio.h");
 
-        fn write_image(path: &str, image: &Raster) -> Result<()>;
+        fn write_image(path: &str, format: &str, image: &Raster) -> Result<()>;
         fn write_rgb8(path: &str, width: u32, height: u32, rgb: &[u8]) -> Result<()>;
         fn read_image(path: &str) -> Result<Raster>;
     }
@@ -58,8 +58,15 @@ fn path_str(path: &Path) -> Result<&str> {
         .ok_or_else(|| anyhow!("{}: path is not valid UTF-8", path.display()))
 }
 
-/// Writes `planes` to `path` in the format named by its extension.
-pub fn write(path: &Path, planes: &Planes) -> Result<()> {
+/// The file formats written through OpenImageIO besides PNG.
+#[derive(Clone, Copy, Debug)]
+pub enum Format {
+    Exr,
+    Hdr,
+}
+
+/// Writes `planes` to `path` in `format`, whatever the file's extension.
+pub fn write(path: &Path, format: Format, planes: &Planes) -> Result<()> {
     let raster = ffi::Raster {
         width: planes.width,
         height: planes.height,
@@ -97,10 +104,14 @@ pub fn write(path: &Path, planes: &Planes) -> Result<()> {
             })
             .collect(),
     };
-    Ok(ffi::write_image(path_str(path)?, &raster)?)
+    let format = match format {
+        Format::Exr => "openexr",
+        Format::Hdr => "hdr",
+    };
+    Ok(ffi::write_image(path_str(path)?, format, &raster)?)
 }
 
-/// Writes 8-bit RGB pixels, row-major and top row first.
+/// Writes 8-bit RGB pixels, row-major and top row first, as PNG.
 pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
     Ok(ffi::write_rgb8(path_str(path)?, width, height, rgb)?)
 }

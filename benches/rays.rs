@@ -335,6 +335,22 @@ fn rays(c: &mut Criterion) {
                     b.iter(|| eng.intersect_batch(rays, &mut out))
                 });
             }
+            #[cfg(feature = "embree")]
+            {
+                // The wrapper's overhead: the same rays one call at a time
+                // through `RayEngine`, and a bare `rtcIntersect1` loop.
+                let eng = bare_embree(scene);
+                group.bench_function(BenchmarkId::new("embree-single", scene.name), |b| {
+                    b.iter(|| {
+                        rays.iter()
+                            .filter(|r| accel::RayEngine::intersect(&eng, r).is_some())
+                            .count()
+                    })
+                });
+                group.bench_function(BenchmarkId::new("embree-bare", scene.name), |b| {
+                    b.iter(|| eng.bare_intersect(rays))
+                });
+            }
         }
         group.finish();
     }
@@ -348,8 +364,29 @@ fn rays(c: &mut Criterion) {
                 b.iter(|| eng.occluded_batch(&set.shadow, &mut out))
             });
         }
+        #[cfg(feature = "embree")]
+        {
+            let eng = bare_embree(scene);
+            group.bench_function(BenchmarkId::new("embree-single", scene.name), |b| {
+                b.iter(|| {
+                    set.shadow
+                        .iter()
+                        .filter(|r| accel::RayEngine::occluded(&eng, r))
+                        .count()
+                })
+            });
+            group.bench_function(BenchmarkId::new("embree-bare", scene.name), |b| {
+                b.iter(|| eng.bare_occluded(&set.shadow))
+            });
+        }
     }
     group.finish();
+}
+
+#[cfg(feature = "embree")]
+fn bare_embree(scene: &BenchScene) -> rangewalk::accel::embree::EmbreeEngine {
+    rangewalk::accel::embree::EmbreeEngine::new(&scene.meshes, &scene.transforms)
+        .expect("Embree builds the bench scene")
 }
 
 fn build(c: &mut Criterion) {

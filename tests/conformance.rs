@@ -506,10 +506,15 @@ fn check_occluded(label: &str, ray: &Ray, got: bool, cands: &[Candidate]) {
 /// Random rays for a scene: half aimed at a point of a random triangle, half
 /// in random directions; direction lengths vary (t is in units of `dir`) and
 /// a third are segments with a positive `tmin` and a finite `tmax`.
-fn random_rays(rng: &mut Rng, scene: &TestScene, tris: &[WorldTriangle], n: usize) -> Vec<Ray> {
+fn random_rays(
+    rng: &mut Rng,
+    (lo, hi): (Vec3, Vec3),
+    tris: &[WorldTriangle],
+    n: usize,
+) -> Vec<Ray> {
     (0..n)
         .map(|i| {
-            let origin = rng.in_box(scene.lo, scene.hi);
+            let origin = rng.in_box(lo, hi);
             let aim = if i % 2 == 0 && !tris.is_empty() {
                 let tri = &tris[rng.below(tris.len())];
                 let (a, b) = (rng.f32() as f64, rng.f32() as f64);
@@ -525,7 +530,7 @@ fn random_rays(rng: &mut Rng, scene: &TestScene, tris: &[WorldTriangle], n: usiz
             };
             let dir = aim * 10f32.powf(rng.range(-1.0, 1.0));
             if i % 3 == 0 {
-                let extent = (scene.hi - scene.lo).length() / dir.length();
+                let extent = (hi - lo).length() / dir.length();
                 let tmin = rng.range(0.0, 0.1) * extent;
                 Ray {
                     origin,
@@ -543,46 +548,93 @@ fn random_rays(rng: &mut Rng, scene: &TestScene, tris: &[WorldTriangle], n: usiz
 // ---------------------------------------------------------------------------
 // Conformance against the reference.
 
-#[test]
-fn engines_agree_with_the_reference_on_generated_scenes() {
-    const RAYS: usize = 3000;
-    for scene in [box_rooms(), soups(), cornell()] {
-        for &backend in Backend::available() {
-            let mut eng = engine(backend, &scene.meshes, &scene.at(0.0));
-            let mut rng = Rng(0x5EED);
-            let mut tally = Tally::default();
-            for time in [0.0, 0.5, 1.0] {
-                let transforms = scene.at(time);
-                eng.set_transforms(&transforms)
-                    .unwrap_or_else(|e| panic!("{backend}: set_transforms: {e:#}"));
-                let tris = world_triangles(&scene.meshes, &transforms);
-                let rays = random_rays(&mut rng, &scene, &tris, RAYS);
-                let mut hits = vec![None; rays.len()];
-                eng.intersect_batch(&rays, &mut hits);
-                let mut blocked = vec![false; rays.len()];
-                eng.occluded_batch(&rays, &mut blocked);
-                let label = format!("{backend} on {} at t={time}", scene.name);
-                for (i, ray) in rays.iter().enumerate() {
-                    let cands = candidates(&tris, ray);
-                    check_hit(&label, ray, hits[i], &cands, &mut tally);
-                    check_occluded(&label, ray, blocked[i], &cands);
-                    if i % 5 == 0 {
-                        // Single-ray calls answer like the batches.
-                        let mut single = Tally::default();
-                        check_hit(&label, ray, eng.intersect(ray), &cands, &mut single);
-                        check_occluded(&label, ray, eng.occluded(ray), &cands);
-                    }
+/// Every backend against the brute-force reference on one scene at several
+/// times, the engine moved between times with `set_transforms`.
+fn agree_with_reference(
+    name: &str,
+    meshes: &[MeshGeometry],
+    at: &dyn Fn(f32) -> Vec<Affine3A>,
+    bounds: (Vec3, Vec3),
+    times: &[f32],
+    rays_per_time: usize,
+) {
+    for &backend in Backend::available() {
+        let mut eng = engine(backend, meshes, &at(times[0]));
+        let mut rng = Rng(0x5EED);
+        let mut tally = Tally::default();
+        for &time in times {
+            let transforms = at(time);
+            eng.set_transforms(&transforms)
+                .unwrap_or_else(|e| panic!("{backend}: set_transforms: {e:#}"));
+            let tris = world_triangles(meshes, &transforms);
+            let rays = random_rays(&mut rng, bounds, &tris, rays_per_time);
+            let mut hits = vec![None; rays.len()];
+            eng.intersect_batch(&rays, &mut hits);
+            let mut blocked = vec![false; rays.len()];
+            eng.occluded_batch(&rays, &mut blocked);
+            let label = format!("{backend} on {name} at t={time}");
+            for (i, ray) in rays.iter().enumerate() {
+                let cands = candidates(&tris, ray);
+                check_hit(&label, ray, hits[i], &cands, &mut tally);
+                check_occluded(&label, ray, blocked[i], &cands);
+                if i % 5 == 0 {
+                    // Single-ray calls answer like the batches.
+                    let mut single = Tally::default();
+                    check_hit(&label, ray, eng.intersect(ray), &cands, &mut single);
+                    check_occluded(&label, ray, eng.occluded(ray), &cands);
                 }
             }
-            assert!(
-                tally.exact as f64 >= 0.995 * tally.rays as f64,
-                "{backend} on {}: only {} of {} rays found the reference's closest triangle",
-                scene.name,
-                tally.exact,
-                tally.rays
-            );
         }
+        assert!(
+            tally.exact as f64 >= 0.995 * tally.rays as f64,
+            "{backend} on {name}: only {} of {} rays found the reference's closest triangle",
+            tally.exact,
+            tally.rays
+        );
     }
+}
+
+#[test]
+fn engines_agree_with_the_reference_on_generated_scenes() {
+    for scene in [box_rooms(), soups(), cornell()] {
+        let at = |t: f32| scene.at(t);
+        agree_with_reference(
+            scene.name,
+            &scene.meshes,
+            &at,
+            (scene.lo, scene.hi),
+            &[0.0, 0.5, 1.0],
+            3000,
+        );
+    }
+}
+
+#[test]
+fn engines_agree_with_the_reference_on_every_bundled_scene() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path().join("scene.toml");
+        let scene = rangewalk::scene::Scene::load(&path).unwrap_or_else(|e| panic!("{e:#}"));
+        let a = scene.animation;
+        let times: Vec<f32> = (0..4)
+            .map(|k| a.start + (a.end - a.start) * k as f32 / 3.0)
+            .collect();
+        // Origins inside and around the scene, from its bounds at the start.
+        let (lo, hi) = scene.bounds(a.start);
+        let pad = (hi - lo) * 0.1;
+        let at = |t: f32| scene.at(t);
+        agree_with_reference(
+            &path.display().to_string(),
+            &scene.geometry(),
+            &at,
+            (lo - pad, hi + pad),
+            &times,
+            600,
+        );
+        n += 1;
+    }
+    assert!(n >= 5, "found only {n} bundled scenes in {}", dir.display());
 }
 
 #[test]

@@ -1,9 +1,979 @@
-use std::path::PathBuf;
+//! Reading `scene.toml` and its OBJ meshes into a validated [`Scene`].
+//!
+//! Parsing happens in two steps: serde reads the TOML into the `*Toml` structs
+//! below (unknown keys are errors, and every table keeps its span so that
+//! later errors can name the line), then `build_*` checks values and turns
+//! them into the scene's plain data. Every error names the file and the line
+//! or field at fault.
 
-use anyhow::Result;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
-use super::Scene;
+use anyhow::{anyhow, bail, ensure, Context, Result};
+use glam::{Quat, Vec2, Vec3};
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::{
+    Animation, Bsdf, CameraDesc, Emission, GlossyModel, Keyframe, Light, Material, Mesh, Motion,
+    Object, PathKey, Scene, Texture, ViewSpace, WalkPath,
+};
+
+type V3 = [f32; 3];
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneToml {
+    animation: Option<AnimationToml>,
+    #[serde(default)]
+    materials: Vec<Spanned<MaterialToml>>,
+    #[serde(default)]
+    objects: Vec<Spanned<ObjectToml>>,
+    #[serde(default)]
+    lights: Vec<Spanned<LightToml>>,
+    #[serde(default)]
+    cameras: Vec<Spanned<CameraToml>>,
+    view_space: Option<Spanned<ViewSpaceToml>>,
+    #[serde(default)]
+    paths: Vec<Spanned<PathToml>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AnimationToml {
+    start: f32,
+    end: f32,
+    fps: f32,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, tag = "type", rename_all = "lowercase")]
+enum MaterialToml {
+    Diffuse {
+        name: String,
+        reflectance: V3,
+        texture: Option<PathBuf>,
+        emission: Option<V3>,
+        #[serde(default)]
+        two_sided_emission: bool,
+    },
+    Glossy {
+        name: String,
+        diffuse: V3,
+        specular: V3,
+        roughness: f32,
+        #[serde(default = "default_glossy_model")]
+        model: String,
+        emission: Option<V3>,
+        #[serde(default)]
+        two_sided_emission: bool,
+    },
+    Mirror {
+        name: String,
+        reflectance: V3,
+    },
+}
+
+fn default_glossy_model() -> String {
+    "ggx".into()
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectToml {
+    name: String,
+    mesh: PathBuf,
+    /// Which named object/group of the OBJ file; all of them when absent.
+    group: Option<String>,
+    /// A `[[materials]]` name; when absent, the OBJ's own (MTL) material.
+    material: Option<String>,
+    /// Object-space point that rotation and scale act about.
+    pivot: Option<V3>,
+    #[serde(default)]
+    keyframes: Vec<Spanned<KeyframeToml>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct KeyframeToml {
+    time: f32,
+    #[serde(default)]
+    translate: V3,
+    rotate: Option<RotationToml>,
+    scale: Option<f32>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RotationToml {
+    axis: V3,
+    degrees: f32,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, tag = "type", rename_all = "lowercase")]
+enum LightToml {
+    Point {
+        position: V3,
+        intensity: V3,
+    },
+    Sun {
+        direction: V3,
+        radiance: V3,
+        angular_diameter: f32,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraToml {
+    name: String,
+    position: V3,
+    look_at: Option<V3>,
+    direction: Option<V3>,
+    #[serde(default = "default_up")]
+    up: V3,
+    vfov: f32,
+}
+
+fn default_up() -> V3 {
+    [0.0, 1.0, 0.0]
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, tag = "type", rename_all = "lowercase")]
+enum ViewSpaceToml {
+    Segment { a: V3, b: V3 },
+    Rectangle { min: V3, max: V3 },
+    Box { min: V3, max: V3 },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PathToml {
+    name: String,
+    keys: Vec<Spanned<CameraKeyToml>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraKeyToml {
+    time: f32,
+    position: V3,
+    look_at: Option<V3>,
+    direction: Option<V3>,
+    #[serde(default = "default_up")]
+    up: V3,
+    vfov: f32,
+}
+
+/// Turns byte offsets into `file:line` locations for messages.
+struct Source<'a> {
+    path: &'a Path,
+    text: &'a str,
+}
+
+impl Source<'_> {
+    fn at<T>(&self, item: &Spanned<T>) -> String {
+        let line = self.text[..item.span().start].matches('\n').count() + 1;
+        format!("{}:{line}", self.path.display())
+    }
+}
 
 pub fn load(path: PathBuf) -> Result<Scene> {
-    anyhow::bail!("{}: scene loading is not written yet", path.display())
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("cannot read scene file {}", path.display()))?;
+    let parsed: SceneToml = toml::from_str(&text)
+        .map_err(|e| anyhow!("{}: {}", path.display(), e.to_string().trim_end()))?;
+    let src = Source {
+        path: &path,
+        text: &text,
+    };
+    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+
+    let animation = match parsed.animation {
+        Some(a) => {
+            let what = format!("{}: [animation]", path.display());
+            finite(&what, "start", &[a.start])?;
+            finite(&what, "end", &[a.end])?;
+            ensure!(
+                a.end >= a.start,
+                "{what}: end {} is before start {}",
+                a.end,
+                a.start
+            );
+            ensure!(
+                a.fps.is_finite() && a.fps > 0.0,
+                "{what}: fps {} must be positive",
+                a.fps
+            );
+            Animation {
+                start: a.start,
+                end: a.end,
+                fps: a.fps,
+            }
+        }
+        None => Animation {
+            start: 0.0,
+            end: 0.0,
+            fps: 30.0,
+        },
+    };
+
+    let mut materials = Vec::new();
+    for m in &parsed.materials {
+        let material = build_material(&src.at(m), m.get_ref(), &dir)?;
+        ensure!(
+            !materials.iter().any(|o: &Material| o.name == material.name),
+            "{}: material `{}` is defined twice",
+            src.at(m),
+            material.name
+        );
+        materials.push(material);
+    }
+
+    let mut objects = Vec::new();
+    let mut dropped_triangles = 0;
+    let mut obj_cache: HashMap<PathBuf, Arc<ObjFile>> = HashMap::new();
+    for o in &parsed.objects {
+        let at = src.at(o);
+        let o = o.get_ref();
+        ensure!(
+            !objects.iter().any(|x: &Object| x.name == o.name),
+            "{at}: object `{}` is defined twice",
+            o.name
+        );
+        let mesh_path = dir.join(&o.mesh);
+        let obj = match obj_cache.get(&mesh_path) {
+            Some(f) => f.clone(),
+            None => {
+                let f = Arc::new(ObjFile::read(&mesh_path)?);
+                obj_cache.insert(mesh_path.clone(), f.clone());
+                f
+            }
+        };
+        let (mesh, mtl_name, dropped) = obj
+            .mesh(o.group.as_deref())
+            .with_context(|| format!("{at}: object `{}`", o.name))?;
+        dropped_triangles += dropped;
+        let material = resolve_material(&at, o, mtl_name.as_deref(), &obj, &mut materials, &dir)?;
+        let motion = build_motion(&src, &at, o)?;
+        objects.push(Object {
+            name: o.name.clone(),
+            mesh,
+            material,
+            motion,
+        });
+    }
+    ensure!(
+        objects.iter().any(|o| !o.mesh.triangles.is_empty()),
+        "{}: the scene is empty (no object with a triangle of non-zero area)",
+        path.display()
+    );
+
+    let mut lights = Vec::new();
+    for l in &parsed.lights {
+        lights.push(build_light(&src.at(l), l.get_ref())?);
+    }
+
+    let mut cameras = Vec::new();
+    for c in &parsed.cameras {
+        let at = src.at(c);
+        let c = c.get_ref();
+        ensure!(
+            !cameras.iter().any(|x: &CameraDesc| x.name == c.name),
+            "{at}: camera `{}` is defined twice",
+            c.name
+        );
+        let what = format!("{at}: camera `{}`", c.name);
+        let (direction, up) = pose(&what, c.position, c.look_at, c.direction, c.up, c.vfov)?;
+        cameras.push(CameraDesc {
+            name: c.name.clone(),
+            position: c.position.into(),
+            direction,
+            up,
+            vfov_deg: c.vfov,
+        });
+    }
+
+    let view_space = parsed
+        .view_space
+        .as_ref()
+        .map(|v| build_view_space(&src.at(v), v.get_ref()))
+        .transpose()?;
+
+    let mut paths = Vec::new();
+    for p in &parsed.paths {
+        let at = src.at(p);
+        let p = p.get_ref();
+        ensure!(!p.keys.is_empty(), "{at}: path `{}` has no keys", p.name);
+        let mut keys: Vec<PathKey> = Vec::new();
+        for k in &p.keys {
+            let what = format!("{}: path `{}` key", src.at(k), p.name);
+            let k = k.get_ref();
+            finite(&what, "time", &[k.time])?;
+            if let Some(prev) = keys.last() {
+                ensure!(
+                    k.time > prev.time,
+                    "{what}: time {} is not after the previous key's time {} (keys must be in increasing time)",
+                    k.time,
+                    prev.time
+                );
+            }
+            let (direction, up) = pose(&what, k.position, k.look_at, k.direction, k.up, k.vfov)?;
+            keys.push(PathKey {
+                time: k.time,
+                position: k.position.into(),
+                direction,
+                up,
+                vfov_deg: k.vfov,
+            });
+        }
+        paths.push(WalkPath {
+            name: p.name.clone(),
+            keys,
+        });
+    }
+
+    Ok(Scene {
+        source: path,
+        objects,
+        materials,
+        lights,
+        animation,
+        cameras,
+        view_space,
+        paths,
+        dropped_triangles,
+    })
+}
+
+fn finite(what: &str, field: &str, values: &[f32]) -> Result<()> {
+    ensure!(
+        values.iter().all(|v| v.is_finite()),
+        "{what}: `{field}` {values:?} is not finite (NaN or infinite)"
+    );
+    Ok(())
+}
+
+fn reflectance(what: &str, field: &str, v: V3) -> Result<Vec3> {
+    finite(what, field, &v)?;
+    ensure!(
+        v.iter().all(|&c| c >= 0.0),
+        "{what}: `{field}` {v:?} has a negative channel"
+    );
+    ensure!(
+        v.iter().all(|&c| c < 1.0),
+        "{what}: `{field}` {v:?} has a channel >= 1; a reflectance must stay below 1 to conserve energy"
+    );
+    Ok(v.into())
+}
+
+fn emission(what: &str, e: Option<V3>, two_sided: bool) -> Result<Option<Emission>> {
+    let Some(e) = e else { return Ok(None) };
+    finite(what, "emission", &e)?;
+    ensure!(
+        e.iter().all(|&c| c >= 0.0),
+        "{what}: `emission` {e:?} has a negative channel"
+    );
+    Ok(Some(Emission {
+        radiance: e.into(),
+        two_sided,
+    }))
+}
+
+fn build_material(at: &str, m: &MaterialToml, dir: &Path) -> Result<Material> {
+    Ok(match m {
+        MaterialToml::Diffuse {
+            name,
+            reflectance: r,
+            texture,
+            emission: e,
+            two_sided_emission,
+        } => {
+            let what = format!("{at}: material `{name}`");
+            let texture = texture
+                .as_ref()
+                .map(|t| read_texture(&what, &dir.join(t)))
+                .transpose()?;
+            Material {
+                name: name.clone(),
+                bsdf: Bsdf::Diffuse {
+                    reflectance: reflectance(&what, "reflectance", *r)?,
+                    texture,
+                },
+                emission: emission(&what, *e, *two_sided_emission)?,
+            }
+        }
+        MaterialToml::Glossy {
+            name,
+            diffuse,
+            specular,
+            roughness,
+            model,
+            emission: e,
+            two_sided_emission,
+        } => {
+            let what = format!("{at}: material `{name}`");
+            let d = reflectance(&what, "diffuse", *diffuse)?;
+            let s = reflectance(&what, "specular", *specular)?;
+            let sum = d + s;
+            ensure!(
+                sum.max_element() < 1.0,
+                "{what}: `diffuse` + `specular` = {:?} has a channel >= 1; the total reflectance must stay below 1",
+                sum.to_array()
+            );
+            ensure!(
+                roughness.is_finite() && *roughness > 0.0 && *roughness <= 1.0,
+                "{what}: `roughness` {roughness} must lie in (0, 1] (use a mirror material for 0)"
+            );
+            let model = match model.as_str() {
+                "ggx" => GlossyModel::Ggx,
+                "ward" => GlossyModel::Ward,
+                other => bail!(
+                    "{what}: unknown glossy `model` \"{other}\" (expected \"ggx\" or \"ward\")"
+                ),
+            };
+            Material {
+                name: name.clone(),
+                bsdf: Bsdf::Glossy {
+                    diffuse: d,
+                    specular: s,
+                    roughness: *roughness,
+                    model,
+                },
+                emission: emission(&what, *e, *two_sided_emission)?,
+            }
+        }
+        MaterialToml::Mirror {
+            name,
+            reflectance: r,
+        } => {
+            let what = format!("{at}: material `{name}`");
+            Material {
+                name: name.clone(),
+                bsdf: Bsdf::Mirror {
+                    reflectance: reflectance(&what, "reflectance", *r)?,
+                },
+                emission: None,
+            }
+        }
+    })
+}
+
+fn read_texture(what: &str, path: &Path) -> Result<Arc<Texture>> {
+    let tex = crate::image::read_texture(path).with_context(|| format!("{what}: texture"))?;
+    ensure!(
+        tex.texels
+            .iter()
+            .all(|t| t.is_finite() && t.min_element() >= 0.0 && t.max_element() < 1.0),
+        "{what}: texture {} has texels outside [0, 1); a reflectance must stay below 1",
+        path.display()
+    );
+    Ok(Arc::new(tex))
+}
+
+/// Picks the object's material: the named `[[materials]]` entry, else one
+/// made from the OBJ's MTL material (Kd, map_Kd, Ke) on first use.
+fn resolve_material(
+    at: &str,
+    o: &ObjectToml,
+    mtl_name: Option<&str>,
+    obj: &ObjFile,
+    materials: &mut Vec<Material>,
+    dir: &Path,
+) -> Result<usize> {
+    let known = |materials: &[Material]| {
+        materials
+            .iter()
+            .map(|m| m.name.clone())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    if let Some(name) = &o.material {
+        return materials
+            .iter()
+            .position(|m| &m.name == name)
+            .ok_or_else(|| {
+                anyhow!(
+                    "{at}: object `{}` uses unknown material `{name}` (materials: {})",
+                    o.name,
+                    known(materials)
+                )
+            });
+    }
+    let Some(mtl_name) = mtl_name else {
+        bail!(
+            "{at}: object `{}` has no `material` and its mesh names no MTL material",
+            o.name
+        );
+    };
+    if let Some(i) = materials.iter().position(|m| m.name == mtl_name) {
+        return Ok(i);
+    }
+    let mtl = obj
+        .materials
+        .iter()
+        .find(|m| m.name == mtl_name)
+        .ok_or_else(|| {
+            anyhow!(
+                "{at}: object `{}`: MTL material `{mtl_name}` is not defined",
+                o.name
+            )
+        })?;
+    let what = format!("{}: MTL material `{mtl_name}`", obj.path.display());
+    let texture = match &mtl.diffuse_texture {
+        Some(t) => Some(read_texture(
+            &what,
+            &obj.path.parent().unwrap_or(dir).join(t),
+        )?),
+        None => None,
+    };
+    let ke = mtl
+        .unknown_param
+        .get("Ke")
+        .map(|ke| parse_floats(&what, "Ke", ke))
+        .transpose()?
+        .filter(|e| e.iter().any(|&c| c > 0.0));
+    materials.push(Material {
+        name: mtl_name.to_string(),
+        bsdf: Bsdf::Diffuse {
+            reflectance: reflectance(&what, "Kd", mtl.diffuse.unwrap_or([0.0; 3]))?,
+            texture,
+        },
+        emission: emission(&what, ke, false)?,
+    });
+    Ok(materials.len() - 1)
+}
+
+fn parse_floats(what: &str, field: &str, s: &str) -> Result<V3> {
+    let v: Vec<f32> = s
+        .split_whitespace()
+        .map(|x| x.parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| anyhow!("{what}: `{field}` \"{s}\" is not three numbers"))?;
+    ensure!(
+        v.len() == 3,
+        "{what}: `{field}` \"{s}\" is not three numbers"
+    );
+    Ok([v[0], v[1], v[2]])
+}
+
+fn build_motion(src: &Source, at: &str, o: &ObjectToml) -> Result<Motion> {
+    let what = format!("{at}: object `{}`", o.name);
+    let pivot = o.pivot.unwrap_or([0.0; 3]);
+    finite(&what, "pivot", &pivot)?;
+    let mut keys: Vec<Keyframe> = Vec::new();
+    for k in &o.keyframes {
+        let kat = format!("{}: object `{}` keyframe", src.at(k), o.name);
+        let k = k.get_ref();
+        finite(&kat, "time", &[k.time])?;
+        finite(&kat, "translate", &k.translate)?;
+        if let Some(prev) = keys.last() {
+            ensure!(
+                k.time > prev.time,
+                "{kat}: time {} is not after the previous keyframe's time {} (keyframes must be in increasing time)",
+                k.time,
+                prev.time
+            );
+        }
+        let rotation = match &k.rotate {
+            Some(r) => {
+                finite(&kat, "rotate.axis", &r.axis)?;
+                finite(&kat, "rotate.degrees", &[r.degrees])?;
+                let axis = Vec3::from(r.axis).normalize_or_zero();
+                ensure!(
+                    axis != Vec3::ZERO,
+                    "{kat}: `rotate.axis` {:?} has no length",
+                    r.axis
+                );
+                Quat::from_axis_angle(axis, r.degrees.to_radians())
+            }
+            None => Quat::IDENTITY,
+        };
+        let scale = k.scale.unwrap_or(1.0);
+        ensure!(
+            scale.is_finite() && scale > 0.0,
+            "{kat}: `scale` {scale} must be a positive number"
+        );
+        keys.push(Keyframe {
+            time: k.time,
+            translation: k.translate.into(),
+            rotation,
+            scale,
+        });
+    }
+    Ok(Motion::with_pivot(keys, pivot.into()))
+}
+
+fn build_light(at: &str, l: &LightToml) -> Result<Light> {
+    Ok(match l {
+        LightToml::Point {
+            position,
+            intensity,
+        } => {
+            let what = format!("{at}: point light");
+            finite(&what, "position", position)?;
+            finite(&what, "intensity", intensity)?;
+            ensure!(
+                intensity.iter().all(|&c| c >= 0.0),
+                "{what}: `intensity` {intensity:?} has a negative channel"
+            );
+            Light::Point {
+                position: (*position).into(),
+                intensity: (*intensity).into(),
+            }
+        }
+        LightToml::Sun {
+            direction,
+            radiance,
+            angular_diameter,
+        } => {
+            let what = format!("{at}: sun");
+            finite(&what, "direction", direction)?;
+            finite(&what, "radiance", radiance)?;
+            let d = Vec3::from(*direction).normalize_or_zero();
+            ensure!(
+                d != Vec3::ZERO,
+                "{what}: `direction` {direction:?} has no length"
+            );
+            ensure!(
+                radiance.iter().all(|&c| c >= 0.0),
+                "{what}: `radiance` {radiance:?} has a negative channel"
+            );
+            ensure!(
+                angular_diameter.is_finite() && *angular_diameter > 0.0 && *angular_diameter < 90.0,
+                "{what}: `angular_diameter` {angular_diameter} must lie in (0, 90) degrees"
+            );
+            Light::Sun {
+                direction: d,
+                radiance: (*radiance).into(),
+                angular_diameter_deg: *angular_diameter,
+            }
+        }
+    })
+}
+
+/// Validates a camera pose and returns its unit direction and up vector.
+fn pose(
+    what: &str,
+    position: V3,
+    look_at: Option<V3>,
+    direction: Option<V3>,
+    up: V3,
+    vfov: f32,
+) -> Result<(Vec3, Vec3)> {
+    finite(what, "position", &position)?;
+    finite(what, "up", &up)?;
+    let dir = match (look_at, direction) {
+        (Some(t), None) => {
+            finite(what, "look_at", &t)?;
+            Vec3::from(t) - Vec3::from(position)
+        }
+        (None, Some(d)) => {
+            finite(what, "direction", &d)?;
+            Vec3::from(d)
+        }
+        _ => bail!("{what}: give exactly one of `look_at` and `direction`"),
+    };
+    let dir = dir.normalize_or_zero();
+    ensure!(
+        dir != Vec3::ZERO,
+        "{what}: the view direction has no length (`look_at` equals `position`?)"
+    );
+    let up = Vec3::from(up);
+    ensure!(
+        dir.cross(up).length() > 1e-6 * up.length().max(f32::MIN_POSITIVE),
+        "{what}: `up` {up} is parallel to the view direction {dir}"
+    );
+    ensure!(
+        vfov.is_finite() && vfov > 0.0 && vfov < 180.0,
+        "{what}: `vfov` {vfov} must lie in (0, 180) degrees"
+    );
+    Ok((dir, up))
+}
+
+fn build_view_space(at: &str, v: &ViewSpaceToml) -> Result<ViewSpace> {
+    let what = format!("{at}: [view_space]");
+    Ok(match v {
+        ViewSpaceToml::Segment { a, b } => {
+            finite(&what, "a", a)?;
+            finite(&what, "b", b)?;
+            ensure!(a != b, "{what}: segment end points are equal");
+            ViewSpace::Segment {
+                a: (*a).into(),
+                b: (*b).into(),
+            }
+        }
+        ViewSpaceToml::Rectangle { min, max } | ViewSpaceToml::Box { min, max } => {
+            finite(&what, "min", min)?;
+            finite(&what, "max", max)?;
+            let (lo, hi) = (Vec3::from(*min), Vec3::from(*max));
+            ensure!(
+                lo.cmple(hi).all(),
+                "{what}: `min` {lo} is not below `max` {hi} on every axis"
+            );
+            let flat = (hi - lo).to_array().iter().filter(|&&e| e == 0.0).count();
+            if matches!(v, ViewSpaceToml::Rectangle { .. }) {
+                ensure!(
+                    flat == 1,
+                    "{what}: a rectangle must have exactly one zero extent, `max - min` = {}",
+                    hi - lo
+                );
+                ViewSpace::Rectangle { min: lo, max: hi }
+            } else {
+                ensure!(
+                    flat == 0,
+                    "{what}: a box must have extent on every axis, `max - min` = {}",
+                    hi - lo
+                );
+                ViewSpace::Box { min: lo, max: hi }
+            }
+        }
+    })
+}
+
+/// One OBJ file with its models and MTL materials.
+struct ObjFile {
+    path: PathBuf,
+    models: Vec<tobj::Model>,
+    materials: Vec<tobj::Material>,
+}
+
+impl ObjFile {
+    fn read(path: &Path) -> Result<Self> {
+        ensure!(
+            path.is_file(),
+            "mesh file {} does not exist",
+            path.display()
+        );
+        let opts = tobj::LoadOptions {
+            single_index: true,
+            triangulate: true,
+            ignore_points: true,
+            ignore_lines: true,
+        };
+        let (models, materials) = tobj::load_obj(path, &opts)
+            .map_err(|e| anyhow!("cannot read mesh {}: {e}", path.display()))?;
+        let materials = materials
+            .map_err(|e| anyhow!("cannot read the MTL file of {}: {e}", path.display()))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            models,
+            materials,
+        })
+    }
+
+    /// The triangles of `group` (or all groups) with zero-area triangles
+    /// dropped and counted, and the MTL material name the group uses.
+    fn mesh(&self, group: Option<&str>) -> Result<(Mesh, Option<String>, usize)> {
+        let models: Vec<&tobj::Model> = match group {
+            Some(g) => self.models.iter().filter(|m| m.name == g).collect(),
+            None => self.models.iter().collect(),
+        };
+        if models.is_empty() {
+            let names: Vec<&str> = self.models.iter().map(|m| m.name.as_str()).collect();
+            bail!(
+                "{}: no group `{}` in the mesh (groups: {})",
+                self.path.display(),
+                group.unwrap_or("*"),
+                names.join(", ")
+            );
+        }
+        let mut mesh = Mesh::default();
+        let with_uvs = models.iter().all(|m| !m.mesh.texcoords.is_empty());
+        let mut uvs = Vec::new();
+        let mut dropped = 0;
+        let mut mtl = None;
+        for m in models {
+            let base = mesh.positions.len() as u32;
+            let p = &m.mesh.positions;
+            ensure!(
+                p.iter().all(|c| c.is_finite()),
+                "{}: group `{}` has a vertex coordinate that is not finite",
+                self.path.display(),
+                m.name
+            );
+            mesh.positions
+                .extend(p.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])));
+            if with_uvs {
+                uvs.extend(
+                    m.mesh
+                        .texcoords
+                        .chunks_exact(2)
+                        .map(|c| Vec2::new(c[0], c[1])),
+                );
+            }
+            for t in m.mesh.indices.chunks_exact(3) {
+                let tri = [base + t[0], base + t[1], base + t[2]];
+                if mesh.triangle_area(tri) > 0.0 {
+                    mesh.triangles.push(tri);
+                } else {
+                    dropped += 1;
+                }
+            }
+            if mtl.is_none() {
+                mtl = m
+                    .mesh
+                    .material_id
+                    .and_then(|i| self.materials.get(i))
+                    .map(|x| x.name.clone());
+            }
+        }
+        mesh.uvs = with_uvs.then_some(uvs);
+        Ok((mesh, mtl, dropped))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OBJ: &str = "o quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n\
+                       o sliver\nv 0 0 0\nv 1 0 0\nv 2 0 0\nf 5 6 7\n";
+
+    fn scene_dir(toml: &str) -> (tempfile::TempDir, PathBuf) {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("m.obj"), OBJ).unwrap();
+        let path = dir.path().join("scene.toml");
+        std::fs::write(&path, toml).unwrap();
+        (dir, path)
+    }
+
+    const GOOD: &str = r#"
+[animation]
+start = 0
+end = 1
+fps = 30
+
+[[materials]]
+name = "white"
+type = "diffuse"
+reflectance = [0.5, 0.5, 0.5]
+
+[[objects]]
+name = "quad"
+mesh = "m.obj"
+group = "quad"
+material = "white"
+pivot = [0.5, 0.5, 0]
+[[objects.keyframes]]
+time = 0
+[[objects.keyframes]]
+time = 1
+translate = [1, 0, 0]
+rotate = { axis = [0, 0, 1], degrees = 90 }
+
+[[cameras]]
+name = "main"
+position = [0.5, 0.5, -3]
+look_at = [0.5, 0.5, 0]
+vfov = 40
+"#;
+
+    fn load_err(toml: &str) -> String {
+        let (_d, path) = scene_dir(toml);
+        format!("{:#}", Scene::load(path).unwrap_err())
+    }
+
+    #[test]
+    fn good_scene_loads() {
+        let (_d, path) = scene_dir(GOOD);
+        let s = Scene::load(path).unwrap();
+        assert_eq!(s.objects.len(), 1);
+        assert_eq!(s.objects[0].mesh.triangles.len(), 2);
+        assert!(!s.is_static());
+        // The pivot stays put while the quad turns; translation moves it.
+        let c = s.at(1.0)[0].transform_point3(Vec3::new(0.5, 0.5, 0.0));
+        assert!((c - Vec3::new(1.5, 0.5, 0.0)).length() < 1e-5, "{c}");
+        assert_eq!(s.camera("main").unwrap().direction, Vec3::Z);
+        assert!(s.camera("nope").unwrap_err().to_string().contains("main"));
+    }
+
+    #[test]
+    fn zero_area_triangles_are_dropped_and_counted() {
+        let toml = GOOD.replace("group = \"quad\"\n", "");
+        let (_d, path) = scene_dir(&toml);
+        let s = Scene::load(path).unwrap();
+        assert_eq!(s.dropped_triangles, 1);
+        assert_eq!(s.objects[0].mesh.triangles.len(), 2);
+    }
+
+    #[test]
+    fn bad_inputs_name_what_is_wrong() {
+        let cases: &[(&str, &str, &[&str])] = &[
+            (
+                "reflectance = [0.5, 0.5, 0.5]",
+                "reflectance = [1.0, 0.5, 0.5]",
+                &["white", ">= 1", "scene.toml:7"],
+            ),
+            (
+                "reflectance = [0.5, 0.5, 0.5]",
+                "reflectance = [nan, 0.5, 0.5]",
+                &["reflectance", "not finite"],
+            ),
+            (
+                "material = \"white\"",
+                "material = \"gold\"",
+                &["gold", "white", "quad"],
+            ),
+            (
+                "translate = [1, 0, 0]",
+                "translate = [inf, 0, 0]",
+                &["translate", "not finite"],
+            ),
+            ("time = 1\n", "time = -1\n", &["increasing", "keyframe"]),
+            (
+                "mesh = \"m.obj\"",
+                "mesh = \"missing.obj\"",
+                &["missing.obj", "does not exist"],
+            ),
+            ("group = \"quad\"", "group = \"sliver\"", &["empty"]),
+            ("group = \"quad\"", "group = \"cube\"", &["cube", "quad"]),
+            ("vfov = 40", "vfov = 400", &["vfov", "main"]),
+            ("fps = 30", "fps = 30\nspeed = 2", &["speed"]),
+            ("type = \"diffuse\"", "type = \"velvet\"", &["velvet"]),
+            (
+                "look_at = [0.5, 0.5, 0]",
+                "look_at = [0.5, 0.5, -3]",
+                &["direction"],
+            ),
+        ];
+        for (from, to, needles) in cases {
+            assert!(GOOD.contains(from), "{from}");
+            let msg = load_err(&GOOD.replacen(from, to, 1));
+            assert!(
+                msg.contains("scene.toml") || msg.contains(".obj"),
+                "no file named in: {msg}"
+            );
+            for n in *needles {
+                assert!(msg.contains(n), "`{n}` missing from: {msg}");
+            }
+        }
+    }
+
+    #[test]
+    fn malformed_files_are_errors() {
+        assert!(load_err("[[objects]\n").contains("scene.toml"));
+        assert!(load_err("").contains("empty"));
+        let dir = tempfile::tempdir().unwrap();
+        let err = format!(
+            "{:#}",
+            Scene::load(dir.path().join("none.toml")).unwrap_err()
+        );
+        assert!(err.contains("none.toml"), "{err}");
+    }
+
+    #[test]
+    fn nan_in_obj_is_an_error() {
+        let (d, path) = scene_dir(GOOD);
+        std::fs::write(
+            d.path().join("m.obj"),
+            "o quad\nv 0 0 0\nv nan 0 0\nv 1 1 0\nf 1 2 3\n",
+        )
+        .unwrap();
+        let msg = format!("{:#}", Scene::load(path).unwrap_err());
+        assert!(msg.contains("m.obj") && msg.contains("finite"), "{msg}");
+    }
 }

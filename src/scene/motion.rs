@@ -23,16 +23,24 @@ impl Keyframe {
 }
 
 /// Keyframes in strictly increasing time; empty means the identity pose.
+///
+/// Rotation and scale act about `pivot` (object space), so a key list that
+/// only turns an object spins it in place even between keys.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Motion {
     keys: Vec<Keyframe>,
+    pivot: Vec3,
 }
 
 impl Motion {
     /// Keys must be sorted by strictly increasing time (the loader checks).
     pub fn new(keys: Vec<Keyframe>) -> Self {
+        Self::with_pivot(keys, Vec3::ZERO)
+    }
+
+    pub fn with_pivot(keys: Vec<Keyframe>, pivot: Vec3) -> Self {
         debug_assert!(keys.windows(2).all(|w| w[0].time < w[1].time));
-        Self { keys }
+        Self { keys, pivot }
     }
 
     pub fn keys(&self) -> &[Keyframe] {
@@ -54,22 +62,24 @@ impl Motion {
             (Some(f), Some(l)) => (f, l),
             _ => return Affine3A::IDENTITY,
         };
-        if t <= first.time {
-            return first.transform();
-        }
-        if t >= last.time {
-            return last.transform();
-        }
-        let i = self.keys.partition_point(|k| k.time <= t);
-        let (a, b) = (&self.keys[i - 1], &self.keys[i]);
-        let s = (t - a.time) / (b.time - a.time);
-        Keyframe {
-            time: t,
-            translation: a.translation.lerp(b.translation, s),
-            rotation: a.rotation.slerp(b.rotation, s),
-            scale: a.scale + (b.scale - a.scale) * s,
-        }
-        .transform()
+        let key = if t <= first.time {
+            *first
+        } else if t >= last.time {
+            *last
+        } else {
+            let i = self.keys.partition_point(|k| k.time <= t);
+            let (a, b) = (&self.keys[i - 1], &self.keys[i]);
+            let s = (t - a.time) / (b.time - a.time);
+            Keyframe {
+                time: t,
+                translation: a.translation.lerp(b.translation, s),
+                rotation: a.rotation.slerp(b.rotation, s),
+                scale: a.scale + (b.scale - a.scale) * s,
+            }
+        };
+        Affine3A::from_translation(self.pivot)
+            * key.transform()
+            * Affine3A::from_translation(-self.pivot)
     }
 }
 
@@ -100,6 +110,26 @@ mod tests {
         assert_eq!(m.pose(-5.0), m.pose(0.0));
         assert_eq!(m.pose(7.0), m.pose(2.0));
         assert!(!m.is_static());
+    }
+
+    #[test]
+    fn rotation_about_pivot_keeps_the_pivot_fixed_between_keys() {
+        let pivot = Vec3::new(368.5, 0.0, 351.25);
+        let m = Motion::with_pivot(
+            vec![key(0.0, 0.0, 0.0, 1.0), key(1.0, 0.0, 30.0, 1.0)],
+            pivot,
+        );
+        for t in [0.0, 0.25, 0.5, 1.0] {
+            let p = m.pose(t).transform_point3(pivot + Vec3::Y * 100.0);
+            assert!(
+                (p - (pivot + Vec3::Y * 100.0)).length() < 1e-3,
+                "t={t}: {p}"
+            );
+        }
+        let corner = pivot + Vec3::X * 10.0;
+        let moved = m.pose(0.5).transform_point3(corner) - pivot;
+        let expect = Quat::from_rotation_y(15f32.to_radians()) * (Vec3::X * 10.0);
+        assert!((moved - expect).length() < 1e-3, "{moved} vs {expect}");
     }
 
     #[test]

@@ -1,0 +1,71 @@
+# The two entry points of a fresh Debian 12 machine that has Rust:
+#   make demo  - install what is missing, build, render the animated Cornell box
+#   make test  - install what is missing, build, run every test (both variants)
+# Everything the project needs is installed from here, nothing by hand.
+
+SHELL := /bin/bash
+CARGO ?= cargo
+VENV := .venv
+PYTHON := $(VENV)/bin/python
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+DEB_PACKAGES := libembree-dev libopenimageio-dev libclang-dev pkg-config g++ python3 python3-venv
+PY_PACKAGES := mitsuba==3.9.1 numpy
+DEMO_SCENE := scenes/cornell-box/scene.toml
+DEMO_TIMES := 0 0.5 1
+DEMO_SIZE := 512x512
+DEMO_SPP := 256
+
+export RANGEWALK_PYTHON := $(abspath $(PYTHON))
+
+.PHONY: demo test deps debs venv build lint bench clean
+
+demo: deps build
+	@rm -rf out/demo && mkdir -p out/demo.partial
+	@set -o pipefail; for t in $(DEMO_TIMES); do \
+	  target/release/rangewalk render $(DEMO_SCENE) --time $$t --camera main --size $(DEMO_SIZE) \
+	    --spp $(DEMO_SPP) --out out/demo.partial/cornell-box-t$$t.exr \
+	    --preview out/demo.partial/cornell-box-t$$t.png || exit 1; \
+	done | tee out/demo.partial/summary.txt
+	@mv out/demo.partial out/demo
+	@echo "demo written to out/demo/ (EXR range images, PNG previews, summary.txt)"
+
+test: deps build lint
+	$(CARGO) test --release
+	$(CARGO) test --release --no-default-features
+
+deps: debs venv
+
+# Debian packages, installed only when missing (sudo only when not root).
+debs:
+	@missing=""; \
+	for p in $(DEB_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing Debian packages:$$missing"; \
+	  $(SUDO) apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
+
+# Mitsuba 3, the independent renderer the validation tests compare against.
+venv: $(VENV)/.installed
+$(VENV)/.installed:
+	python3 -m venv $(VENV)
+	$(PYTHON) -m pip install -q --disable-pip-version-check $(PY_PACKAGES)
+	$(PYTHON) -c "import mitsuba; mitsuba.set_variant('scalar_rgb')"
+	touch $@
+
+build:
+	$(CARGO) build --release
+
+lint:
+	$(CARGO) fmt --check
+	$(CARGO) clippy --release --all-targets -- -D warnings
+	$(CARGO) clippy --release --all-targets --no-default-features -- -D warnings
+
+bench: deps
+	$(CARGO) bench
+
+clean:
+	$(CARGO) clean
+	rm -rf out $(VENV)

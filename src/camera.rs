@@ -119,11 +119,11 @@ impl Camera {
         })
     }
 
-    fn to_world(&self, local: Vec3) -> Vec3 {
+    fn local_to_world(&self, local: Vec3) -> Vec3 {
         self.right * local.x + self.up * local.y + self.forward * local.z
     }
 
-    fn to_local(&self, world: Vec3) -> Vec3 {
+    fn world_to_local(&self, world: Vec3) -> Vec3 {
         Vec3::new(
             world.dot(self.right),
             world.dot(self.up),
@@ -164,14 +164,14 @@ impl Camera {
                 octahedral_square_to_sphere(p)
             }
         };
-        Some(Ray::new(self.position, self.to_world(local)))
+        Some(Ray::new(self.position, self.local_to_world(local)))
     }
 
     /// Continuous pixel position of world point `p`, or `None` where the
     /// projection does not see it (behind a pinhole, outside the fisheye's
     /// hemisphere or the image).
     pub fn project(&self, p: Vec3) -> Option<Vec2> {
-        let d = self.to_local(p - self.position);
+        let d = self.world_to_local(p - self.position);
         let (w, h) = (self.width as f32, self.height as f32);
         let px = match self.projection {
             Projection::Perspective { vfov_deg } => {

@@ -1,31 +1,612 @@
-//! Embree ray engine.
+//! Embree ray engine: meshes as instances of per-mesh Embree scenes.
 use anyhow::Result;
-use glam::Affine3A;
+use glam::{Affine3A, Mat3A, Vec3};
 
 use super::{Hit, InstancedEngine, MeshGeometry, Ray, RayEngine};
+use crate::embree::{
+    self, Device, InstancedScene, RTCRay16, RTCRayHit, RTCRayHit16, Valid16, INVALID_ID, PACKET,
+};
 
-pub struct EmbreeEngine {}
+pub struct EmbreeEngine {
+    scene: InstancedScene,
+    /// Per instance, the matrix taking an object-space winding normal to the
+    /// world-space winding normal (Embree reports `Ng` of instanced geometry
+    /// in object space).
+    normal_maps: Vec<Mat3A>,
+}
 
 impl EmbreeEngine {
-    pub fn new(_meshes: &[MeshGeometry], _transforms: &[Affine3A]) -> Result<Self> {
-        anyhow::bail!("embree backend not written yet")
+    /// Builds the scene on a device of its own. An empty `meshes` is a valid
+    /// scene in which every ray misses.
+    pub fn new(meshes: &[MeshGeometry], transforms: &[Affine3A]) -> Result<Self> {
+        let device = Device::new()?;
+        let scene = InstancedScene::new(&device, meshes, transforms)?;
+        Ok(Self {
+            scene,
+            normal_maps: transforms.iter().map(normal_map).collect(),
+        })
     }
+
+    /// Number of rays that hit anything, by a bare `rtcIntersect1` loop over
+    /// the same committed scene: the baseline the engine's overhead is
+    /// measured against.
+    pub fn bare_intersect(&self, rays: &[Ray]) -> u32 {
+        self.scene.count_hits(rays)
+    }
+
+    /// Number of rays blocked, by a bare `rtcOccluded1` loop.
+    pub fn bare_occluded(&self, rays: &[Ray]) -> u32 {
+        self.scene.count_occluded(rays)
+    }
+
+    #[inline]
+    fn hit(&self, t: f32, instance: u32, primitive: u32, u: f32, v: f32, ng: Vec3) -> Hit {
+        Hit {
+            t,
+            object: instance,
+            primitive,
+            u,
+            v,
+            normal: (self.normal_maps[instance as usize] * ng).normalize(),
+        }
+    }
+
+    fn convert(&self, rh: &RTCRayHit) -> Option<Hit> {
+        (rh.hit.geomID != INVALID_ID).then(|| {
+            let h = &rh.hit;
+            self.hit(
+                rh.ray.tfar,
+                h.instID[0],
+                h.primID,
+                h.u,
+                h.v,
+                Vec3::new(h.Ng_x, h.Ng_y, h.Ng_z),
+            )
+        })
+    }
+}
+
+/// Whether Embree's 16-ray packet traversal pays off for these rays: all
+/// directions within about 25 degrees of the first. Measured on 512x512 rays
+/// over 800k triangles, packets were 1.5x faster than single rays for camera
+/// rays and 2x slower for random rays; short tails stay single too.
+fn coherent(rays: &[Ray]) -> bool {
+    const MIN_COS: f32 = 0.9;
+    const MIN_LANES: usize = PACKET / 2;
+    let d0 = rays[0].dir.normalize_or_zero();
+    rays.len() >= MIN_LANES
+        && rays
+            .iter()
+            .all(|r| r.dir.normalize_or_zero().dot(d0) >= MIN_COS)
+}
+
+/// Loads up to [`PACKET`] rays into the lanes of a packet; returns the lanes'
+/// validity mask.
+fn load_packet(rays: &[Ray], packet: &mut RTCRay16) -> Valid16 {
+    let mut valid = Valid16([0; PACKET]);
+    for (k, r) in rays.iter().enumerate() {
+        packet.org_x[k] = r.origin.x;
+        packet.org_y[k] = r.origin.y;
+        packet.org_z[k] = r.origin.z;
+        packet.dir_x[k] = r.dir.x;
+        packet.dir_y[k] = r.dir.y;
+        packet.dir_z[k] = r.dir.z;
+        packet.tnear[k] = r.tmin;
+        packet.tfar[k] = r.tmax;
+        packet.mask[k] = u32::MAX;
+        valid.0[k] = -1;
+    }
+    valid
+}
+
+/// The cofactor matrix of the linear part, `det(M) M^-T`: it maps
+/// `(v1-v0) x (v2-v0)` of object-space vertices to the same cross product of
+/// the transformed vertices, so it keeps the winding orientation under
+/// mirroring and stays finite for singular transforms.
+fn normal_map(xfm: &Affine3A) -> Mat3A {
+    let m = xfm.matrix3;
+    Mat3A::from_cols(
+        m.y_axis.cross(m.z_axis),
+        m.z_axis.cross(m.x_axis),
+        m.x_axis.cross(m.y_axis),
+    )
 }
 
 impl RayEngine for EmbreeEngine {
     fn name(&self) -> &'static str {
         "embree"
     }
-    fn intersect(&self, _ray: &Ray) -> Option<Hit> {
-        None
+
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut rh = embree::ray_hit(ray);
+        self.scene.intersect1(&mut rh);
+        self.convert(&rh)
     }
-    fn occluded(&self, _ray: &Ray) -> bool {
-        false
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        let mut r = embree::ray1(ray);
+        self.scene.occluded1(&mut r);
+        r.tfar == f32::NEG_INFINITY
+    }
+
+    /// Traces each group of 16 coherent rays as one packet, the rest one by
+    /// one (see [`coherent`]).
+    fn intersect_batch(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        assert_eq!(
+            rays.len(),
+            out.len(),
+            "intersect_batch: rays and out differ in length"
+        );
+        let mut packet = RTCRayHit16::default();
+        for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
+            if !coherent(rays) {
+                for (r, o) in rays.iter().zip(out) {
+                    *o = self.intersect(r);
+                }
+                continue;
+            }
+            let valid = load_packet(rays, &mut packet.ray);
+            packet.hit.geomID = [INVALID_ID; PACKET];
+            self.scene.intersect16(&valid, &mut packet, true);
+            let h = &packet.hit;
+            for (k, o) in out.iter_mut().enumerate() {
+                *o = (h.geomID[k] != INVALID_ID).then(|| {
+                    self.hit(
+                        packet.ray.tfar[k],
+                        h.instID[0][k],
+                        h.primID[k],
+                        h.u[k],
+                        h.v[k],
+                        Vec3::new(h.Ng_x[k], h.Ng_y[k], h.Ng_z[k]),
+                    )
+                });
+            }
+        }
+    }
+
+    fn occluded_batch(&self, rays: &[Ray], out: &mut [bool]) {
+        assert_eq!(
+            rays.len(),
+            out.len(),
+            "occluded_batch: rays and out differ in length"
+        );
+        let mut packet = RTCRay16::default();
+        for (rays, out) in rays.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
+            if !coherent(rays) {
+                for (r, o) in rays.iter().zip(out) {
+                    *o = self.occluded(r);
+                }
+                continue;
+            }
+            let valid = load_packet(rays, &mut packet);
+            self.scene.occluded16(&valid, &mut packet, true);
+            for (k, o) in out.iter_mut().enumerate() {
+                *o = packet.tfar[k] == f32::NEG_INFINITY;
+            }
+        }
     }
 }
 
 impl InstancedEngine for EmbreeEngine {
-    fn set_transforms(&mut self, _t: &[Affine3A]) -> Result<()> {
+    fn set_transforms(&mut self, transforms: &[Affine3A]) -> Result<()> {
+        self.scene.set_transforms(transforms)?;
+        self.normal_maps.clear();
+        self.normal_maps.extend(transforms.iter().map(normal_map));
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Quat;
+    use rayon::prelude::*;
+    use std::f32::consts::FRAC_PI_2;
+
+    macro_rules! assert_close {
+        ($a:expr, $b:expr, $tol:expr) => {{
+            let (a, b) = ($a, $b);
+            assert!(
+                (a - b).abs() <= $tol,
+                "{} = {a:?} but {} = {b:?} (difference {:?})",
+                stringify!($a),
+                stringify!($b),
+                (a - b).abs()
+            );
+        }};
+    }
+
+    fn assert_vec_close(a: Vec3, b: Vec3, tol: f32) {
+        assert!(a.abs_diff_eq(b, tol), "{a} vs {b} (difference {})", a - b);
+    }
+
+    /// Two triangles: the unit right triangle in z = 0 (winding normal +z)
+    /// and a larger one in z = -1 behind it.
+    fn two_layers() -> MeshGeometry {
+        MeshGeometry {
+            positions: vec![
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+                Vec3::new(-5.0, -5.0, -1.0),
+                Vec3::new(5.0, -5.0, -1.0),
+                Vec3::new(0.0, 5.0, -1.0),
+            ],
+            triangles: vec![[0, 1, 2], [3, 4, 5]],
+        }
+    }
+
+    fn engine(meshes: &[MeshGeometry], xfms: &[Affine3A]) -> EmbreeEngine {
+        EmbreeEngine::new(meshes, xfms).expect("engine builds")
+    }
+
+    #[test]
+    fn unit_triangle_hit_has_analytic_t_uv_and_normal() {
+        let e = engine(&[two_layers()], &[Affine3A::IDENTITY]);
+        let ray = Ray::new(Vec3::new(0.25, 0.5, 1.0), Vec3::new(0.0, 0.0, -2.0));
+        let hit = e.intersect(&ray).expect("hits the unit triangle");
+        assert_eq!((hit.object, hit.primitive), (0, 0));
+        assert_close!(hit.t, 0.5, 1e-6);
+        assert_close!(hit.u, 0.25, 1e-6);
+        assert_close!(hit.v, 0.5, 1e-6);
+        assert_vec_close(hit.normal, Vec3::Z, 1e-6);
+        // From below the normal still follows the winding, not the ray.
+        let up = Ray::new(Vec3::new(0.25, 0.5, -0.5), Vec3::Z);
+        let hit = e.intersect(&up).expect("hits from below");
+        assert_eq!(hit.primitive, 0);
+        assert_close!(hit.t, 0.5, 1e-6);
+        assert_vec_close(hit.normal, Vec3::Z, 1e-6);
+        // Outside the unit triangle the ray reaches the back layer.
+        let side = Ray::new(Vec3::new(0.75, 0.75, 1.0), Vec3::NEG_Z);
+        let hit = e.intersect(&side).expect("hits the back layer");
+        assert_eq!(hit.primitive, 1);
+        assert_close!(hit.t, 2.0, 1e-6);
+        assert!(e.intersect(&Ray::new(Vec3::Z, Vec3::Z)).is_none());
+    }
+
+    #[test]
+    fn tmax_and_tmin_bound_the_segment() {
+        let e = engine(&[two_layers()], &[Affine3A::IDENTITY]);
+        let o = Vec3::new(0.25, 0.25, 1.0);
+        let d = Vec3::NEG_Z;
+        assert!(!e.occluded(&Ray::segment(o, d, 0.99)));
+        assert!(e.occluded(&Ray::segment(o, d, 1.01)));
+        assert!(e.intersect(&Ray::segment(o, d, 0.99)).is_none());
+        let mut past_front = Ray::new(o, d);
+        past_front.tmin = 1.01;
+        let hit = e.intersect(&past_front).expect("back layer beyond tmin");
+        assert_eq!(hit.primitive, 1);
+        assert_close!(hit.t, 2.0, 1e-6);
+        past_front.tmin = 2.01;
+        assert!(e.intersect(&past_front).is_none());
+        assert!(!e.occluded(&past_front));
+    }
+
+    #[test]
+    fn instances_place_hits_and_normals_in_world_space() {
+        // The triangle with winding normal along (1,1,1).
+        let slanted = MeshGeometry {
+            positions: vec![Vec3::X, Vec3::Y, Vec3::Z],
+            triangles: vec![[0, 1, 2]],
+        };
+        let cases = [
+            Affine3A::from_translation(Vec3::new(0.0, 0.0, 5.0)),
+            Affine3A::from_rotation_x(FRAC_PI_2),
+            Affine3A::from_scale(Vec3::new(1.0, 2.0, 4.0)),
+            Affine3A::from_scale_rotation_translation(
+                Vec3::new(3.0, 0.5, 2.0),
+                Quat::from_euler(glam::EulerRot::XYZ, 0.3, -1.1, 2.0),
+                Vec3::new(-2.0, 7.0, 1.0),
+            ),
+            // A mirror flips the winding, and so the normal.
+            Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0)),
+        ];
+        for xfm in cases {
+            let world = slanted.positions.map_world(&xfm);
+            let expected_n = (world[1] - world[0]).cross(world[2] - world[0]).normalize();
+            let target = world[0] * 0.2 + world[1] * 0.3 + world[2] * 0.5;
+            let origin = target + expected_n * 3.0 + Vec3::new(0.1, -0.2, 0.05);
+            let e = engine(std::slice::from_ref(&slanted), &[xfm]);
+            let ray = Ray::new(origin, (target - origin) * 0.5);
+            let hit = e
+                .intersect(&ray)
+                .unwrap_or_else(|| panic!("{xfm:?} misses"));
+            assert_close!(hit.t, 2.0, 1e-4);
+            assert_vec_close(ray.at(hit.t), target, 1e-4);
+            assert_close!(hit.u, 0.3, 1e-4);
+            assert_close!(hit.v, 0.5, 1e-4);
+            assert_vec_close(hit.normal, expected_n, 1e-5);
+        }
+    }
+
+    trait MapWorld {
+        fn map_world(&self, xfm: &Affine3A) -> Vec<Vec3>;
+    }
+    impl MapWorld for Vec<Vec3> {
+        fn map_world(&self, xfm: &Affine3A) -> Vec<Vec3> {
+            self.iter().map(|&p| xfm.transform_point3(p)).collect()
+        }
+    }
+
+    #[test]
+    fn updating_transforms_moves_the_hits() {
+        let meshes = [two_layers(), two_layers()];
+        let apart = [
+            Affine3A::IDENTITY,
+            Affine3A::from_translation(Vec3::new(100.0, 0.0, 0.0)),
+        ];
+        let mut e = engine(&meshes, &apart);
+        let at_origin = Ray::new(Vec3::new(0.25, 0.25, 1.0), Vec3::NEG_Z);
+        let at_100 = Ray::new(Vec3::new(100.25, 0.25, 1.0), Vec3::NEG_Z);
+        assert_eq!(e.intersect(&at_100).map(|h| h.object), Some(1));
+        // Move instance 1 in front of instance 0 and rotate it to face +x.
+        let moved = [
+            Affine3A::IDENTITY,
+            Affine3A::from_translation(Vec3::new(0.0, 0.0, 0.5)),
+        ];
+        e.set_transforms(&moved).unwrap();
+        assert!(e.intersect(&at_100).is_none());
+        let hit = e.intersect(&at_origin).unwrap();
+        assert_eq!((hit.object, hit.primitive), (1, 0));
+        assert_close!(hit.t, 0.5, 1e-6);
+        let turned = [
+            Affine3A::IDENTITY,
+            Affine3A::from_translation(Vec3::new(10.0, 0.0, 0.0))
+                * Affine3A::from_rotation_y(FRAC_PI_2),
+        ];
+        e.set_transforms(&turned).unwrap();
+        let hit = e
+            .intersect(&Ray::new(Vec3::new(20.0, 0.25, -0.25), Vec3::NEG_X))
+            .unwrap();
+        assert_eq!((hit.object, hit.primitive), (1, 0));
+        assert_close!(hit.t, 10.0, 1e-5);
+        assert_vec_close(hit.normal, Vec3::X, 1e-6);
+        assert!(e.set_transforms(&turned[..1]).is_err());
+    }
+
+    #[test]
+    fn empty_scene_misses_and_bad_indices_name_the_mesh() {
+        let e = engine(&[], &[]);
+        let ray = Ray::new(Vec3::ZERO, Vec3::X);
+        assert!(e.intersect(&ray).is_none());
+        assert!(!e.occluded(&ray));
+        let empty_mesh = engine(&[MeshGeometry::default()], &[Affine3A::IDENTITY]);
+        assert!(empty_mesh.intersect(&ray).is_none());
+
+        let mut bad = two_layers();
+        bad.triangles.push([0, 1, 6]);
+        let err = EmbreeEngine::new(&[two_layers(), bad], &[Affine3A::IDENTITY; 2])
+            .err()
+            .expect("index 6 of 6 vertices is out of range");
+        let msg = format!("{err:#}");
+        assert!(
+            msg.contains("mesh 1") && msg.contains("triangle 2") && msg.contains('6'),
+            "{msg}"
+        );
+    }
+
+    /// SplitMix64: a deterministic source of test geometry.
+    struct Rng(u64);
+    impl Rng {
+        fn f32(&mut self) -> f32 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+        }
+        fn range(&mut self, lo: f32, hi: f32) -> f32 {
+            lo + (hi - lo) * self.f32()
+        }
+        fn vec(&mut self, lo: f32, hi: f32) -> Vec3 {
+            Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
+        }
+    }
+
+    fn soup(rng: &mut Rng, n: usize) -> MeshGeometry {
+        let mut m = MeshGeometry::default();
+        for i in 0..n as u32 {
+            let c = rng.vec(-1.0, 1.0);
+            m.positions.push(c + rng.vec(-0.3, 0.3));
+            m.positions.push(c + rng.vec(-0.3, 0.3));
+            m.positions.push(c + rng.vec(-0.3, 0.3));
+            m.triangles.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        m
+    }
+
+    fn random_scene(rng: &mut Rng) -> (Vec<MeshGeometry>, Vec<Affine3A>) {
+        let meshes: Vec<_> = (0..4).map(|_| soup(rng, 60)).collect();
+        let xfms = vec![
+            Affine3A::IDENTITY,
+            Affine3A::from_translation(Vec3::new(0.7, -0.4, 0.2)),
+            Affine3A::from_scale_rotation_translation(
+                Vec3::new(0.5, 1.5, 1.0),
+                Quat::from_axis_angle(Vec3::new(1.0, 2.0, 3.0).normalize(), 0.8),
+                Vec3::new(-0.5, 0.3, 0.0),
+            ),
+            Affine3A::from_scale(Vec3::new(-1.2, 0.9, 1.1)),
+        ];
+        (meshes, xfms)
+    }
+
+    fn random_rays(rng: &mut Rng, n: usize) -> Vec<Ray> {
+        (0..n)
+            .map(|i| {
+                let o = rng.vec(-3.0, 3.0);
+                let target = rng.vec(-1.5, 1.5);
+                let mut r = Ray::new(o, (target - o) * rng.range(0.2, 3.0));
+                if i % 3 == 0 {
+                    r.tmax = rng.range(0.1, 1.5);
+                }
+                r
+            })
+            .collect()
+    }
+
+    /// Closest world-space hit by Möller–Trumbore over every triangle, with
+    /// whether it is clear of edges and of near-ties (where two exact
+    /// methods may rightly disagree).
+    struct Brute {
+        hit: Hit,
+        clear: bool,
+    }
+
+    fn brute_force(meshes: &[MeshGeometry], xfms: &[Affine3A], ray: &Ray) -> Option<Brute> {
+        const MARGIN: f32 = 1e-4;
+        let mut best: Option<Hit> = None;
+        let mut clear = true;
+        let mut second_t = f32::INFINITY;
+        for (obj, (mesh, xfm)) in meshes.iter().zip(xfms).enumerate() {
+            for (prim, tri) in mesh.triangles.iter().enumerate() {
+                let [v0, v1, v2] = tri.map(|k| xfm.transform_point3(mesh.positions[k as usize]));
+                let (e1, e2) = (v1 - v0, v2 - v0);
+                let p = ray.dir.cross(e2);
+                let det = e1.dot(p);
+                if det == 0.0 {
+                    continue;
+                }
+                let s = ray.origin - v0;
+                let u = s.dot(p) / det;
+                let q = s.cross(e1);
+                let v = ray.dir.dot(q) / det;
+                let t = e2.dot(q) / det;
+                let w = 1.0 - u - v;
+                let near_edge = u.abs().min(v.abs()).min(w.abs()) < MARGIN;
+                let near_end = ((t - ray.tmin).abs()).min((t - ray.tmax).abs()) < MARGIN * t.abs();
+                let inside = u >= 0.0 && v >= 0.0 && w >= 0.0 && t >= ray.tmin && t <= ray.tmax;
+                if !inside {
+                    if near_edge || near_end {
+                        clear = false; // a grazing miss may count as a hit
+                    }
+                    continue;
+                }
+                if near_edge || near_end {
+                    clear = false;
+                }
+                let hit = Hit {
+                    t,
+                    object: obj as u32,
+                    primitive: prim as u32,
+                    u,
+                    v,
+                    normal: e1.cross(e2).normalize(),
+                };
+                match best {
+                    Some(b) if b.t <= t => second_t = second_t.min(t),
+                    _ => {
+                        if let Some(b) = best {
+                            second_t = second_t.min(b.t);
+                        }
+                        best = Some(hit);
+                    }
+                }
+            }
+        }
+        best.map(|hit| Brute {
+            clear: clear && (second_t - hit.t) > MARGIN * hit.t.abs(),
+            hit,
+        })
+    }
+
+    #[test]
+    fn matches_brute_force_on_random_instanced_soup() {
+        let mut rng = Rng(7);
+        let (meshes, xfms) = random_scene(&mut rng);
+        let e = engine(&meshes, &xfms);
+        let rays = random_rays(&mut rng, 3000);
+        let (mut compared, mut hits) = (0, 0);
+        for ray in &rays {
+            let got = e.intersect(ray);
+            let want = brute_force(&meshes, &xfms, ray);
+            assert_eq!(e.occluded(ray), got.is_some(), "{ray:?}");
+            match (got, want) {
+                (Some(g), Some(w)) if w.clear => {
+                    let w = w.hit;
+                    assert_eq!((g.object, g.primitive), (w.object, w.primitive), "{ray:?}");
+                    assert_close!(g.t, w.t, 1e-4 * w.t.abs());
+                    assert_close!(g.u, w.u, 1e-3);
+                    assert_close!(g.v, w.v, 1e-3);
+                    assert_vec_close(g.normal, w.normal, 1e-3);
+                    compared += 1;
+                    hits += 1;
+                }
+                (None, None) => compared += 1,
+                (None, Some(w)) => assert!(!w.clear, "Embree misses {ray:?}, expected {:?}", w.hit),
+                (Some(g), None) => {
+                    let margin = g.u.min(g.v).min(1.0 - g.u - g.v);
+                    assert!(margin < 1e-3, "Embree hits {g:?} where nothing is: {ray:?}");
+                }
+                (Some(_), Some(_)) => {}
+            }
+        }
+        assert!(compared > rays.len() * 9 / 10, "only {compared} clear rays");
+        assert!(
+            hits > rays.len() / 5,
+            "only {hits} hits: test scene too sparse"
+        );
+    }
+
+    #[test]
+    fn batches_equal_single_rays() {
+        let mut rng = Rng(11);
+        let (meshes, xfms) = random_scene(&mut rng);
+        let e = engine(&meshes, &xfms);
+        // A camera-like fan, one image row per packet: 1000 = 62 x 16 + 8,
+        // so the last packet has inactive lanes. Every third ray ends early.
+        let origin = Vec3::new(0.2, -0.1, 4.0);
+        let fan: Vec<Ray> = (0..1000)
+            .map(|i| {
+                let target = Vec3::new(
+                    (i % 16) as f32 / 20.0 - 0.4,
+                    (i / 16) as f32 / 20.0 - 1.5,
+                    0.0,
+                );
+                let tmax = if i % 3 == 0 { 0.9 } else { f32::INFINITY };
+                Ray::segment(origin, target - origin, tmax)
+            })
+            .collect();
+        assert!(fan.chunks(PACKET).all(coherent));
+        let random = random_rays(&mut rng, 1000);
+        assert!(!random.chunks(PACKET).any(coherent));
+        for rays in [fan, random] {
+            let mut hits = vec![None; rays.len()];
+            let mut blocked = vec![false; rays.len()];
+            e.intersect_batch(&rays, &mut hits);
+            e.occluded_batch(&rays, &mut blocked);
+            for (i, ray) in rays.iter().enumerate() {
+                assert_eq!(hits[i], e.intersect(ray), "ray {i}: {ray:?}");
+                assert_eq!(blocked[i], e.occluded(ray), "ray {i}: {ray:?}");
+            }
+            let n = hits.iter().filter(|h| h.is_some()).count() as u32;
+            assert!(n > 100, "only {n} hits: the comparison says little");
+            assert_eq!(e.bare_intersect(&rays), n);
+            let b = blocked.iter().filter(|&&b| b).count() as u32;
+            assert_eq!(e.bare_occluded(&rays), b);
+        }
+    }
+
+    #[test]
+    fn queries_from_rayon_threads_agree_with_one_thread() {
+        let mut rng = Rng(3);
+        let (meshes, xfms) = random_scene(&mut rng);
+        let e = engine(&meshes, &xfms);
+        let rays = random_rays(&mut rng, 4000);
+        let serial: Vec<_> = rays
+            .iter()
+            .map(|r| (e.intersect(r), e.occluded(r)))
+            .collect();
+        let parallel: Vec<_> = rays
+            .par_iter()
+            .map(|r| (e.intersect(r), e.occluded(r)))
+            .collect();
+        assert_eq!(serial, parallel);
+        // The engine also moves into and is shared between threads.
+        let boxed: Box<dyn InstancedEngine> = Box::new(e);
+        let count = std::thread::scope(|s| {
+            let h = s.spawn(|| rays.iter().filter(|r| boxed.occluded(r)).count());
+            h.join().unwrap()
+        });
+        assert_eq!(count, serial.iter().filter(|(_, o)| *o).count());
     }
 }

@@ -1,9 +1,39 @@
 //! Range images — radiance plus distance, ids and normals per pixel — and
 //! their files: OpenEXR (with metadata), Radiance `.hdr` and tone-mapped PNG.
+//!
+//! The functions here use OpenImageIO when the `oiio` feature is on and the
+//! pure-Rust back ends ([`exr_io`], [`rgbe`], [`png_io`]) otherwise; those
+//! stay public in every build so each file can be cross-checked with a
+//! second, independent implementation.
+//!
+//! A range image is one EXR part with channels `R`, `G`, `B` (radiance),
+//! `distance`, `N.x`, `N.y`, `N.z` (all 32-bit float), `object_id` and
+//! `primitive_id` (32-bit unsigned), and the camera, projection, scene time
+//! and scene string as `rangewalk:*` header attributes; reading it back
+//! yields an identical [`RangeImage`].
+//!
+//! Every write goes to a temporary file beside the target and is renamed
+//! into place, so a failed or interrupted write never leaves a partial file
+//! under the final name. Every error names the file.
 
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use anyhow::{ensure, Context, Result};
 use glam::Vec3;
 
 use crate::camera::Camera;
+use crate::scene::Texture;
+
+mod color;
+pub mod exr_io;
+#[cfg(feature = "oiio")]
+mod oiio;
+mod planes;
+pub mod png_io;
+pub mod rgbe;
+
+pub use color::tonemap_srgb8;
 
 /// Object/primitive id of a pixel whose ray hit nothing.
 pub const NO_HIT: u32 = u32::MAX;
@@ -62,7 +92,144 @@ impl RangeImage {
     }
 }
 
-/// Reads an image file as a linear RGB texture.
-pub fn read_texture(path: &std::path::Path) -> anyhow::Result<crate::scene::Texture> {
-    anyhow::bail!("{}: texture reading is not written yet", path.display())
+/// Writes a range image as OpenEXR (whatever the file's extension).
+pub fn write_exr(path: impl AsRef<Path>, image: &RangeImage) -> Result<()> {
+    #[cfg(feature = "oiio")]
+    {
+        let path = path.as_ref();
+        let planes = planes::Planes::from_range(image)
+            .with_context(|| format!("writing {}", path.display()))?;
+        write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Exr, &planes))
+    }
+    #[cfg(not(feature = "oiio"))]
+    exr_io::write(path, image)
+}
+
+/// Reads a range image written by [`write_exr`] (by either back end).
+pub fn read_exr(path: impl AsRef<Path>) -> Result<RangeImage> {
+    #[cfg(feature = "oiio")]
+    {
+        let path = path.as_ref();
+        oiio::read(path)?
+            .into_range()
+            .with_context(|| format!("{}: not a range image", path.display()))
+    }
+    #[cfg(not(feature = "oiio"))]
+    exr_io::read(path)
+}
+
+/// Writes linear RGB radiance (top row first) as a Radiance `.hdr` picture.
+pub fn write_hdr(path: impl AsRef<Path>, width: u32, height: u32, radiance: &[Vec3]) -> Result<()> {
+    #[cfg(feature = "oiio")]
+    {
+        let path = path.as_ref();
+        let planes = rgb_planes(width, height, radiance)
+            .with_context(|| format!("writing {}", path.display()))?;
+        write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Hdr, &planes))
+    }
+    #[cfg(not(feature = "oiio"))]
+    rgbe::write(path, width, height, radiance)
+}
+
+/// Writes an 8-bit sRGB preview of linear radiance: scaled by `2^exposure`
+/// and clipped, see [`tonemap_srgb8`].
+pub fn write_png_preview(
+    path: impl AsRef<Path>,
+    width: u32,
+    height: u32,
+    radiance: &[Vec3],
+    exposure: f32,
+) -> Result<()> {
+    let path = path.as_ref();
+    ensure!(
+        radiance.len() == width as usize * height as usize && !radiance.is_empty(),
+        "writing {}: {} pixels do not make a {width}x{height} image",
+        path.display(),
+        radiance.len()
+    );
+    let rgb = tonemap_srgb8(radiance, exposure);
+    #[cfg(feature = "oiio")]
+    return write_atomically(path, |tmp| oiio::write_rgb8(tmp, width, height, &rgb));
+    #[cfg(not(feature = "oiio"))]
+    png_io::write(path, width, height, &rgb)
+}
+
+/// Reads an image as a linear-RGB texture: any format OpenImageIO reads when
+/// the `oiio` feature is on, else PNG, OpenEXR and Radiance `.hdr` chosen by
+/// the file extension. 8- and 16-bit images are taken as sRGB-encoded.
+pub fn read_texture(path: impl AsRef<Path>) -> Result<Texture> {
+    let path = path.as_ref();
+    #[cfg(feature = "oiio")]
+    return oiio::read_texture(path);
+    #[cfg(not(feature = "oiio"))]
+    {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or_default()
+            .to_ascii_lowercase();
+        match ext.as_str() {
+            "png" => png_io::read(path),
+            "exr" => exr_io::read_texture(path),
+            "hdr" | "pic" | "rgbe" => rgbe::read(path),
+            _ => anyhow::bail!(
+                "{}: cannot read textures of type `.{ext}` without OpenImageIO \
+                 (this build reads .png, .exr and .hdr)",
+                path.display()
+            ),
+        }
+    }
+}
+
+#[cfg(feature = "oiio")]
+fn rgb_planes(width: u32, height: u32, radiance: &[Vec3]) -> Result<planes::Planes> {
+    ensure!(
+        radiance.len() == width as usize * height as usize && !radiance.is_empty(),
+        "{} pixels do not make a {width}x{height} image",
+        radiance.len()
+    );
+    let channel = |name: &str, f: fn(&Vec3) -> f32| {
+        (
+            name.to_string(),
+            planes::Plane::F32(radiance.iter().map(f).collect()),
+        )
+    };
+    Ok(planes::Planes {
+        width,
+        height,
+        channels: vec![
+            channel("R", |c| c.x),
+            channel("G", |c| c.y),
+            channel("B", |c| c.z),
+        ],
+        attributes: Vec::new(),
+    })
+}
+
+/// Runs `write` on a fresh hidden file in the target's directory and renames
+/// it over `target` on success; removes it on failure. Every writer names
+/// its format explicitly, so the temporary name needs no extension.
+fn write_atomically(target: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let name = target
+        .file_name()
+        .with_context(|| format!("writing {}: path names no file", target.display()))?;
+    let mut tmp_name = std::ffi::OsString::from(".");
+    tmp_name.push(name);
+    tmp_name.push(format!(
+        ".{}-{}.partial",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    let tmp = target.with_file_name(tmp_name);
+    let result = write(&tmp).and_then(|()| {
+        std::fs::rename(&tmp, target)
+            .with_context(|| format!("cannot rename {} to it", tmp.display()))
+    });
+    if result.is_err() {
+        // The temporary may not exist (the write failed before creating
+        // it); the error that matters is the one being returned.
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.with_context(|| format!("writing {}", target.display()))
 }

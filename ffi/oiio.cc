@@ -1,0 +1,181 @@
+#include "rangewalk/ffi/oiio.h"
+#include "rangewalk/src/image/oiio.rs.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace rangewalk {
+namespace oiio {
+
+namespace {
+
+[[noreturn]] void fail(const std::string &path, const std::string &what,
+                       const std::string &detail) {
+    std::string message = path + ": " + what;
+    if (!detail.empty())
+        message += ": " + detail;
+    throw std::runtime_error(message);
+}
+
+// Creates a writer of the named format (not guessed from the file name, so
+// temporary names need no particular extension) and opens `path` with `spec`.
+std::unique_ptr<OIIO::ImageOutput> open_output(const std::string &path, const char *format,
+                                               const OIIO::ImageSpec &spec) {
+    auto out = OIIO::ImageOutput::create(format);
+    if (!out)
+        fail(path, std::string("no ") + format + " writer", OIIO::geterror());
+    if (!out->open(path, spec))
+        fail(path, "cannot open for writing", out->geterror());
+    return out;
+}
+
+void finish(OIIO::ImageOutput &out, const std::string &path, bool written) {
+    if (!written) {
+        std::string detail = out.geterror();
+        out.close();
+        fail(path, "cannot write pixels", detail);
+    }
+    if (!out.close())
+        fail(path, "cannot finish writing", out.geterror());
+}
+
+void put_attribute(OIIO::ImageSpec &spec, const Attribute &a) {
+    std::string name(a.name);
+    if (a.floats.empty()) {
+        spec.attribute(name, std::string(a.text));
+    } else if (a.floats.size() == 3) {
+        spec.attribute(name, OIIO::TypeVector, a.floats.data());
+    } else if (a.floats.size() == 1) {
+        spec.attribute(name, a.floats[0]);
+    } else {
+        spec.attribute(name, OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, int(a.floats.size())),
+                       a.floats.data());
+    }
+}
+
+Attribute get_attribute(const OIIO::ParamValue &p, bool &known) {
+    Attribute a;
+    a.name = std::string(p.name().string());
+    OIIO::TypeDesc t = p.type();
+    known = true;
+    if (t.basetype == OIIO::TypeDesc::FLOAT) {
+        const float *v = static_cast<const float *>(p.data());
+        size_t n = size_t(p.nvalues()) * t.aggregate * std::max(1, t.arraylen);
+        for (size_t i = 0; i < n; ++i)
+            a.floats.push_back(v[i]);
+    } else if (t == OIIO::TypeString) {
+        a.text = std::string(p.get_string());
+    } else {
+        known = false;
+    }
+    return a;
+}
+
+}  // namespace
+
+void write_image(rust::Str path_str, rust::Str format, const Raster &image) {
+    std::string path(path_str);
+    size_t n = size_t(image.width) * image.height;
+    size_t nch = image.channels.size();
+    if (nch == 0)
+        fail(path, "an image needs at least one channel", "");
+    OIIO::ImageSpec spec(int(image.width), int(image.height), int(nch), OIIO::TypeFloat);
+    spec.channelnames.clear();
+    for (const Channel &c : image.channels) {
+        if (c.data.size() != n)
+            fail(path, "channel " + std::string(c.name) + " has " + std::to_string(c.data.size()) +
+                           " samples for " + std::to_string(n) + " pixels",
+                 "");
+        spec.channelnames.push_back(std::string(c.name));
+        spec.channelformats.push_back(c.sample == Sample::U32 ? OIIO::TypeUInt32
+                                                               : OIIO::TypeFloat);
+    }
+    for (const Attribute &a : image.attributes)
+        put_attribute(spec, a);
+    if (std::string(format) == "openexr")
+        spec.attribute("compression", "zip");
+
+    // Both sample types are four bytes, so the file's native pixel layout
+    // is a plain interleave of the 32-bit words.
+    std::vector<uint32_t> pixels(n * nch);
+    for (size_t c = 0; c < nch; ++c) {
+        const rust::Vec<uint32_t> &data = image.channels[c].data;
+        for (size_t i = 0; i < n; ++i)
+            pixels[i * nch + c] = data[i];
+    }
+    auto out = open_output(path, std::string(format).c_str(), spec);
+    bool ok = out->write_image(OIIO::TypeUnknown, pixels.data());
+    finish(*out, path, ok);
+}
+
+void write_rgb8(rust::Str path_str, uint32_t width, uint32_t height,
+                rust::Slice<const uint8_t> rgb) {
+    std::string path(path_str);
+    if (rgb.size() != size_t(width) * height * 3)
+        fail(path, std::to_string(rgb.size()) + " bytes do not hold " + std::to_string(width) +
+                       "x" + std::to_string(height) + " RGB pixels",
+             "");
+    OIIO::ImageSpec spec(int(width), int(height), 3, OIIO::TypeUInt8);
+    auto out = open_output(path, "png", spec);
+    bool ok = out->write_image(OIIO::TypeUInt8, rgb.data());
+    finish(*out, path, ok);
+}
+
+Raster read_image(rust::Str path_str) {
+    std::string path(path_str);
+    auto in = OIIO::ImageInput::open(path);
+    if (!in)
+        fail(path, "cannot read image", OIIO::geterror());
+    const OIIO::ImageSpec &spec = in->spec();
+    if (spec.depth != 1)
+        fail(path, "volume images are not supported", "");
+    if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
+        fail(path, "image has no pixels", "");
+
+    size_t n = size_t(spec.width) * spec.height;
+    size_t stride = spec.pixel_bytes(true);
+    std::vector<unsigned char> native(n * stride);
+    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeUnknown, native.data()))
+        fail(path, "cannot read pixels", in->geterror());
+
+    Raster r;
+    r.width = uint32_t(spec.width);
+    r.height = uint32_t(spec.height);
+    r.integer_samples = !spec.format.is_floating_point();
+    size_t offset = 0;
+    for (int c = 0; c < spec.nchannels; ++c) {
+        OIIO::TypeDesc format = spec.channelformat(c);
+        std::string name(spec.channel_name(c));
+        Channel ch;
+        ch.name = name;
+        ch.sample = format == OIIO::TypeUInt32 ? Sample::U32 : Sample::F32;
+        std::vector<uint32_t> words(n);
+        OIIO::TypeDesc target = ch.sample == Sample::U32 ? OIIO::TypeUInt32 : OIIO::TypeFloat;
+        if (!OIIO::convert_image(1, spec.width, spec.height, 1, native.data() + offset, format,
+                                 stride, stride * spec.width, OIIO::AutoStride, words.data(),
+                                 target, sizeof(uint32_t), sizeof(uint32_t) * spec.width,
+                                 OIIO::AutoStride))
+            fail(path, "cannot convert channel " + name + " from " + format.c_str(),
+                 "");
+        ch.data.reserve(n);
+        for (uint32_t w : words)
+            ch.data.push_back(w);
+        r.channels.push_back(std::move(ch));
+        offset += format.size();
+    }
+    for (const OIIO::ParamValue &p : spec.extra_attribs) {
+        bool known = false;
+        Attribute a = get_attribute(p, known);
+        if (known)
+            r.attributes.push_back(std::move(a));
+    }
+    in->close();
+    return r;
+}
+
+}  // namespace oiio
+}  // namespace rangewalk

@@ -1,0 +1,28 @@
+// Coarse OpenImageIO shim for rangewalk: whole-file reads and writes on the
+// plain structs shared through the cxx bridge in src/image/oiio.rs.
+// Every function reports failure by throwing std::runtime_error whose message
+// starts with the file name; cxx turns it into a Rust error.
+#pragma once
+
+#include "rust/cxx.h"
+
+namespace rangewalk {
+namespace oiio {
+
+struct Raster;
+
+// Writes every channel of `image` and its attributes to `path` in the
+// named OpenImageIO format ("openexr", "hdr", ...).
+void write_image(rust::Str path, rust::Str format, const Raster &image);
+
+// Writes 8-bit RGB pixels (row-major, top row first) to `path` as PNG.
+void write_rgb8(rust::Str path, uint32_t width, uint32_t height,
+                rust::Slice<const uint8_t> rgb);
+
+// Reads the first subimage of `path`: 32-bit unsigned channels verbatim,
+// every other channel converted to float (integer formats normalized to
+// [0, 1]), plus the float and string attributes of its header.
+Raster read_image(rust::Str path);
+
+}  // namespace oiio
+}  // namespace rangewalk

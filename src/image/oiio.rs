@@ -1,0 +1,168 @@
+//! OpenImageIO through the coarse C++ shim in `ffi/oiio.cc`: whole-file reads
+//! and writes of [`Planes`], so the shim never mirrors OIIO's classes.
+
+use std::path::Path;
+
+use anyhow::{anyhow, Result};
+
+use super::planes::{Attr, Plane, Planes};
+use crate::scene::Texture;
+
+#[cxx::bridge(namespace = "rangewalk::oiio")]
+mod ffi {
+    /// How a channel's 32-bit words are to be read.
+    enum Sample {
+        /// IEEE 754 single floats, as bit patterns.
+        F32,
+        U32,
+    }
+
+    struct Channel {
+        name: String,
+        sample: Sample,
+        data: Vec<u32>,
+    }
+
+    /// A header attribute: a string when `floats` is empty, otherwise one
+    /// float, a 3-vector or a float array.
+    struct Attribute {
+        name: String,
+        floats: Vec<f32>,
+        text: String,
+    }
+
+    struct Raster {
+        width: u32,
+        height: u32,
+        channels: Vec<Channel>,
+        attributes: Vec<Attribute>,
+        /// Whether the file stores integers (read back normalized to
+        /// `[0, 1]`), which are sRGB-encoded unless the file says otherwise.
+        integer_samples: bool,
+    }
+
+    // SAFETY: the shim takes shared structs and slices by reference only for
+    // the duration of a call, keeps no pointer to them, and returns owned
+    // values; its failures are C++ exceptions that cxx turns into `Err`.
+    unsafe extern "C++" {
+        include!("rangewalk/ffi/oiio.h");
+
+        fn write_image(path: &str, format: &str, image: &Raster) -> Result<()>;
+        fn write_rgb8(path: &str, width: u32, height: u32, rgb: &[u8]) -> Result<()>;
+        fn read_image(path: &str) -> Result<Raster>;
+    }
+}
+
+fn path_str(path: &Path) -> Result<&str> {
+    path.to_str()
+        .ok_or_else(|| anyhow!("{}: path is not valid UTF-8", path.display()))
+}
+
+/// The file formats written through OpenImageIO besides PNG.
+#[derive(Clone, Copy, Debug)]
+pub enum Format {
+    Exr,
+    Hdr,
+}
+
+/// Writes `planes` to `path` in `format`, whatever the file's extension.
+pub fn write(path: &Path, format: Format, planes: &Planes) -> Result<()> {
+    let raster = ffi::Raster {
+        width: planes.width,
+        height: planes.height,
+        channels: planes
+            .channels
+            .iter()
+            .map(|(name, plane)| match plane {
+                Plane::F32(v) => ffi::Channel {
+                    name: name.clone(),
+                    sample: ffi::Sample::F32,
+                    data: v.iter().map(|x| x.to_bits()).collect(),
+                },
+                Plane::U32(v) => ffi::Channel {
+                    name: name.clone(),
+                    sample: ffi::Sample::U32,
+                    data: v.clone(),
+                },
+            })
+            .collect(),
+        integer_samples: false,
+        attributes: planes
+            .attributes
+            .iter()
+            .map(|(name, attr)| {
+                let (floats, text) = match attr {
+                    Attr::Float(x) => (vec![*x], String::new()),
+                    Attr::Vector(v) => (v.to_vec(), String::new()),
+                    Attr::Text(s) => (Vec::new(), s.clone()),
+                };
+                ffi::Attribute {
+                    name: name.clone(),
+                    floats,
+                    text,
+                }
+            })
+            .collect(),
+    };
+    let format = match format {
+        Format::Exr => "openexr",
+        Format::Hdr => "hdr",
+    };
+    Ok(ffi::write_image(path_str(path)?, format, &raster)?)
+}
+
+/// Writes 8-bit RGB pixels, row-major and top row first, as PNG.
+pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
+    Ok(ffi::write_rgb8(path_str(path)?, width, height, rgb)?)
+}
+
+/// Reads the first subimage of any file OpenImageIO understands.
+pub fn read(path: &Path) -> Result<Planes> {
+    Ok(planes(ffi::read_image(path_str(path)?)?))
+}
+
+/// Reads any image OpenImageIO understands as a linear-RGB texture. Integer
+/// samples are decoded from sRGB unless the file declares them linear.
+pub fn read_texture(path: &Path) -> Result<Texture> {
+    let raster = ffi::read_image(path_str(path)?)?;
+    let linear = raster
+        .attributes
+        .iter()
+        .any(|a| a.name == "oiio:ColorSpace" && a.text.eq_ignore_ascii_case("linear"));
+    let srgb = raster.integer_samples && !linear;
+    planes(raster).into_texture(path, srgb)
+}
+
+fn planes(raster: ffi::Raster) -> Planes {
+    let channels = raster
+        .channels
+        .into_iter()
+        .map(|c| {
+            let plane = if c.sample == ffi::Sample::U32 {
+                Plane::U32(c.data)
+            } else {
+                Plane::F32(c.data.into_iter().map(f32::from_bits).collect())
+            };
+            (c.name, plane)
+        })
+        .collect();
+    let attributes = raster
+        .attributes
+        .into_iter()
+        .filter_map(|a| {
+            let attr = match a.floats.len() {
+                0 => Attr::Text(a.text),
+                1 => Attr::Float(a.floats[0]),
+                3 => Attr::Vector([a.floats[0], a.floats[1], a.floats[2]]),
+                _ => return None,
+            };
+            Some((a.name, attr))
+        })
+        .collect();
+    Planes {
+        width: raster.width,
+        height: raster.height,
+        channels,
+        attributes,
+    }
+}

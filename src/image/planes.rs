@@ -1,0 +1,268 @@
+//! The content of an image file independent of the library that writes it:
+//! named channel planes plus header attributes. Both EXR back ends (OpenImageIO
+//! and the `exr` crate) only move [`Planes`] to and from disk, so the channel
+//! names, sample types and metadata of a range image are decided once, here,
+//! and files written by one back end read identically with the other.
+
+use std::path::Path;
+
+use anyhow::{anyhow, bail, ensure, Context, Result};
+use glam::Vec3;
+
+use super::color::srgb_decode;
+use super::{RangeImage, RangeMeta};
+use crate::camera::{Camera, Projection};
+use crate::scene::Texture;
+
+/// One channel's samples, row-major, top row first.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Plane {
+    F32(Vec<f32>),
+    U32(Vec<u32>),
+}
+
+impl Plane {
+    fn len(&self) -> usize {
+        match self {
+            Plane::F32(v) => v.len(),
+            Plane::U32(v) => v.len(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum Attr {
+    Float(f32),
+    Vector([f32; 3]),
+    Text(String),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Planes {
+    pub width: u32,
+    pub height: u32,
+    pub channels: Vec<(String, Plane)>,
+    pub attributes: Vec<(String, Attr)>,
+}
+
+// The distance channel is not called `Z`: it is measured along each pixel's
+// ray, while `Z` conventionally holds depth along the view axis.
+const RADIANCE: [&str; 3] = ["R", "G", "B"];
+const DISTANCE: &str = "distance";
+const OBJECT_ID: &str = "object_id";
+const PRIMITIVE_ID: &str = "primitive_id";
+const NORMAL: [&str; 3] = ["N.x", "N.y", "N.z"];
+
+// Camera poses are stored as float vectors, not derived from one another, so
+// a camera read back compares equal bit for bit to the one written.
+const POSITION: &str = "rangewalk:cameraPosition";
+const FORWARD: &str = "rangewalk:cameraForward";
+const UP: &str = "rangewalk:cameraUp";
+const RIGHT: &str = "rangewalk:cameraRight";
+const PROJECTION: &str = "rangewalk:projection";
+const VFOV: &str = "rangewalk:vfovDegrees";
+const TIME: &str = "rangewalk:time";
+const SCENE: &str = "rangewalk:scene";
+
+fn split(v: &[Vec3]) -> [Vec<f32>; 3] {
+    [
+        v.iter().map(|p| p.x).collect(),
+        v.iter().map(|p| p.y).collect(),
+        v.iter().map(|p| p.z).collect(),
+    ]
+}
+
+impl Planes {
+    /// The channels and metadata of a range image; fails when the image's
+    /// per-pixel vectors or its camera disagree with its size.
+    pub fn from_range(image: &RangeImage) -> Result<Planes> {
+        let n = image.len();
+        let (w, h) = (image.width, image.height);
+        ensure!(n > 0, "range image {w}x{h} has no pixels");
+        for (what, len) in [
+            ("radiance", image.radiance.len()),
+            ("distance", image.distance.len()),
+            ("object_id", image.object_id.len()),
+            ("primitive_id", image.primitive_id.len()),
+            ("normal", image.normal.len()),
+        ] {
+            ensure!(
+                len == n,
+                "range image {w}x{h}: `{what}` has {len} values, expected {n}"
+            );
+        }
+        let cam = &image.meta.camera;
+        ensure!(
+            (cam.width, cam.height) == (w, h),
+            "range image {w}x{h} has a {}x{} camera",
+            cam.width,
+            cam.height
+        );
+
+        let mut channels = Vec::with_capacity(9);
+        for (name, plane) in RADIANCE.iter().zip(split(&image.radiance)) {
+            channels.push((name.to_string(), Plane::F32(plane)));
+        }
+        channels.push((DISTANCE.into(), Plane::F32(image.distance.clone())));
+        channels.push((OBJECT_ID.into(), Plane::U32(image.object_id.clone())));
+        channels.push((PRIMITIVE_ID.into(), Plane::U32(image.primitive_id.clone())));
+        for (name, plane) in NORMAL.iter().zip(split(&image.normal)) {
+            channels.push((name.to_string(), Plane::F32(plane)));
+        }
+
+        let mut attributes = vec![
+            (POSITION.into(), Attr::Vector(cam.position.into())),
+            (FORWARD.into(), Attr::Vector(cam.forward.into())),
+            (UP.into(), Attr::Vector(cam.up.into())),
+            (RIGHT.into(), Attr::Vector(cam.right.into())),
+            (PROJECTION.into(), Attr::Text(cam.projection.name().into())),
+            (TIME.into(), Attr::Float(image.meta.time)),
+            (SCENE.into(), Attr::Text(image.meta.scene.clone())),
+        ];
+        if let Projection::Perspective { vfov_deg } = cam.projection {
+            attributes.push((VFOV.into(), Attr::Float(vfov_deg)));
+        }
+        Ok(Planes {
+            width: w,
+            height: h,
+            channels,
+            attributes,
+        })
+    }
+
+    /// The range image these planes hold; fails naming the first channel or
+    /// attribute that is missing or malformed.
+    pub fn into_range(self) -> Result<RangeImage> {
+        let camera = Camera {
+            position: self.vector(POSITION)?,
+            forward: self.vector(FORWARD)?,
+            up: self.vector(UP)?,
+            right: self.vector(RIGHT)?,
+            projection: match self.text(PROJECTION)? {
+                "perspective" => Projection::Perspective {
+                    vfov_deg: self.float(VFOV)?,
+                },
+                "fisheye" => Projection::Fisheye,
+                "sphere" => Projection::Sphere,
+                other => bail!("attribute {PROJECTION} has unknown projection `{other}`"),
+            },
+            width: self.width,
+            height: self.height,
+        };
+        let meta = RangeMeta {
+            camera,
+            time: self.float(TIME)?,
+            scene: self.text(SCENE)?.to_string(),
+        };
+        let [r, g, b] = RADIANCE.map(|name| self.f32_plane(name));
+        let [nx, ny, nz] = NORMAL.map(|name| self.f32_plane(name));
+        let join = |x: &[f32], y: &[f32], z: &[f32]| -> Vec<Vec3> {
+            (0..x.len()).map(|i| Vec3::new(x[i], y[i], z[i])).collect()
+        };
+        Ok(RangeImage {
+            width: self.width,
+            height: self.height,
+            radiance: join(r?, g?, b?),
+            distance: self.f32_plane(DISTANCE)?.to_vec(),
+            object_id: self.u32_plane(OBJECT_ID)?.to_vec(),
+            primitive_id: self.u32_plane(PRIMITIVE_ID)?.to_vec(),
+            normal: join(nx?, ny?, nz?),
+            meta,
+        })
+    }
+
+    /// The named channel, checked to hold one sample per pixel.
+    pub fn channel(&self, name: &str) -> Result<&Plane> {
+        let (_, plane) = self
+            .channels
+            .iter()
+            .find(|(n, _)| n == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = self.channels.iter().map(|(n, _)| n.as_str()).collect();
+                anyhow!("no channel `{name}` (channels: {})", names.join(", "))
+            })?;
+        let n = self.width as usize * self.height as usize;
+        ensure!(
+            plane.len() == n,
+            "channel `{name}` has {} samples for {n} pixels",
+            plane.len()
+        );
+        Ok(plane)
+    }
+
+    fn f32_plane(&self, name: &str) -> Result<&[f32]> {
+        match self.channel(name)? {
+            Plane::F32(v) => Ok(v),
+            Plane::U32(_) => bail!("channel `{name}` holds integers, expected floats"),
+        }
+    }
+
+    fn u32_plane(&self, name: &str) -> Result<&[u32]> {
+        match self.channel(name)? {
+            Plane::U32(v) => Ok(v),
+            Plane::F32(_) => bail!("channel `{name}` holds floats, expected 32-bit unsigned ids"),
+        }
+    }
+
+    fn attribute(&self, name: &str) -> Result<&Attr> {
+        self.attributes
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, a)| a)
+            .with_context(|| format!("no attribute {name} (not a rangewalk range image?)"))
+    }
+
+    fn vector(&self, name: &str) -> Result<Vec3> {
+        match self.attribute(name)? {
+            Attr::Vector(v) => Ok(Vec3::from(*v)),
+            other => bail!("attribute {name} is {other:?}, expected a float 3-vector"),
+        }
+    }
+
+    fn float(&self, name: &str) -> Result<f32> {
+        match self.attribute(name)? {
+            Attr::Float(x) => Ok(*x),
+            other => bail!("attribute {name} is {other:?}, expected a float"),
+        }
+    }
+
+    fn text(&self, name: &str) -> Result<&str> {
+        match self.attribute(name)? {
+            Attr::Text(s) => Ok(s),
+            other => bail!("attribute {name} is {other:?}, expected a string"),
+        }
+    }
+}
+
+impl Planes {
+    /// A linear-RGB texture from the `R`, `G`, `B` channels, or from a grey
+    /// `Y` or lone first channel; `srgb` says the samples are sRGB-encoded.
+    pub fn into_texture(self, path: &Path, srgb: bool) -> Result<Texture> {
+        let names: Vec<&str> = self.channels.iter().map(|(n, _)| n.as_str()).collect();
+        let pick: [&str; 3] = if ["R", "G", "B"].iter().all(|c| names.contains(c)) {
+            ["R", "G", "B"]
+        } else if names.contains(&"Y") {
+            ["Y"; 3]
+        } else if (1..=2).contains(&names.len()) {
+            [names[0]; 3]
+        } else {
+            bail!(
+                "{}: no R, G, B or grey channel for a texture (channels: {})",
+                path.display(),
+                names.join(", ")
+            );
+        };
+        let [r, g, b] = pick.map(|name| self.f32_plane(name));
+        let (r, g, b) = (r?, g?, b?);
+        let decode = |x: f32| if srgb { srgb_decode(x) } else { x };
+        let texels = (0..r.len())
+            .map(|i| Vec3::new(decode(r[i]), decode(g[i]), decode(b[i])))
+            .collect();
+        Ok(Texture {
+            source: path.to_path_buf(),
+            width: self.width,
+            height: self.height,
+            texels,
+        })
+    }
+}

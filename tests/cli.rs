@@ -1,0 +1,113 @@
+//! The `rangewalk` binary as a user meets it: outputs, figures and errors.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn rangewalk(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rangewalk")).args(args).output().expect("run rangewalk")
+}
+
+fn scene(name: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
+        .join("scene.toml")
+        .to_string_lossy()
+        .into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn render_args<'a>(scene: &'a str, out: &'a str) -> Vec<&'a str> {
+    vec!["render", scene, "--time", "0.5", "--camera", "main", "--spp", "4", "--size", "24x16", "--out", out]
+}
+
+#[test]
+fn render_writes_a_range_image_and_reports_throughput() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cb.exr");
+    let png = dir.path().join("cb.png");
+    let cb = scene("cornell-box");
+    let mut args = render_args(&cb, out.to_str().unwrap());
+    args.extend(["--backend", "bvh", "--preview", png.to_str().unwrap()]);
+    let o = rangewalk(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("samples/s") && stdout.contains("rays/s"), "{stdout}");
+    let img = rangewalk::image::read_exr(&out).unwrap();
+    assert_eq!((img.width, img.height), (24, 16));
+    assert!((img.meta.time - 0.5).abs() < 1e-6);
+    assert!(img.radiance.iter().all(|c| c.is_finite() && c.min_element() >= 0.0));
+    assert!(img.radiance.iter().any(|c| c.max_element() > 0.0), "the Cornell box renders black");
+    // Every pixel of the camera `main` sees the inside of the box.
+    assert!(img.object_id.iter().all(|&id| id < 8), "{:?}", img.object_id);
+    assert!(img.distance.iter().all(|&d| d > 800.0 && d < 2000.0));
+    assert!(png.is_file());
+}
+
+#[test]
+fn bad_inputs_fail_with_a_message_and_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.exr");
+    let out_s = out.to_str().unwrap();
+    let cb = scene("cornell-box");
+    let missing = dir.path().join("nope.toml");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (render_args(missing.to_str().unwrap(), out_s), "nope.toml"),
+        ([render_args(&cb, out_s), vec!["--camera", "side"]].concat(), "side"),
+        ([render_args(&cb, out_s), vec!["--size", "0x16"]].concat(), "0x16"),
+        ([render_args(&cb, out_s), vec!["--spp", "0"]].concat(), "spp"),
+        ([render_args(&cb, out_s), vec!["--time", "NaN"]].concat(), "time"),
+    ];
+    for (args, needle) in cases {
+        let o = rangewalk(&args);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(stderr(&o).contains(needle), "{args:?}: `{needle}` not in {}", stderr(&o));
+        assert!(!out.exists(), "{args:?} left {}", out.display());
+    }
+    // An output folder that does not exist: the error names the file.
+    let deep = dir.path().join("no/such/dir/x.exr");
+    let o = rangewalk(&render_args(&cb, deep.to_str().unwrap()));
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("x.exr"), "{}", stderr(&o));
+}
+
+#[test]
+fn info_says_which_stages_a_scene_needs() {
+    let o = rangewalk(&["info", &scene("cornell-box")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.contains("8 objects") && s.contains("no specular rays"), "{s}");
+    assert!(s.contains("animated over [0, 1] s"), "{s}");
+    let o = rangewalk(&["info", &scene("furnace")]);
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.contains("static scene: one time sample"), "{s}");
+    let o = rangewalk(&["info", &scene("glossy-sun")]);
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(!s.contains("no specular rays") && s.contains("sun"), "{s}");
+}
+
+#[test]
+fn export_writes_a_mitsuba_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("mts");
+    let o = rangewalk(&[
+        "export",
+        &scene("cornell-box"),
+        "--time",
+        "1",
+        "--size",
+        "32x32",
+        "--spp",
+        "16",
+        "--format",
+        "mitsuba",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let xml = std::fs::read_to_string(Path::new(&out).join("scene.xml")).unwrap();
+    assert!(xml.contains("<scene") && xml.contains("area") && xml.contains("\"spp\""), "{xml}");
+}

@@ -64,10 +64,14 @@ pub fn export(
         comment(&scene.source.display().to_string())
     )?;
     writeln!(w, r#"<scene version="3.0.0">"#)?;
+    // Defaults that `mitsuba -D spp=...` or `load_file(..., spp=...)` may
+    // override.
     let depth = max_depth.map_or(-1, |d| d as i64);
+    writeln!(w, r#"  <default name="spp" value="{spp}"/>"#)?;
+    writeln!(w, r#"  <default name="max_depth" value="{depth}"/>"#)?;
     writeln!(
         w,
-        r#"  <integrator type="path"><integer name="max_depth" value="{depth}"/></integrator>"#
+        r#"  <integrator type="path"><integer name="max_depth" value="$max_depth"/></integrator>"#
     )?;
     let target = camera.position + camera.forward;
     writeln!(w, r#"  <sensor type="perspective">"#)?;
@@ -82,7 +86,7 @@ pub fn export(
     )?;
     writeln!(
         w,
-        r#"    <sampler type="independent"><integer name="sample_count" value="{spp}"/></sampler>"#
+        r#"    <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>"#
     )?;
     writeln!(w, r#"    <film type="hdrfilm">"#)?;
     writeln!(
@@ -322,6 +326,61 @@ fn comment(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn load(name: &str) -> Scene {
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        Scene::load(dir.join(name).join("scene.toml")).unwrap()
+    }
+
+    #[test]
+    fn cornell_box_exports_posed_meshes_and_one_sided_light() {
+        let scene = load("cornell-box");
+        let camera = scene.camera("main").unwrap().perspective(32, 24).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        export(&scene, 1.0, &camera, 16, None, dir.path()).unwrap();
+        let xml = fs::read_to_string(dir.path().join("scene.xml")).unwrap();
+        for needle in [
+            r#"<scene version="3.0.0">"#,
+            r#"<default name="spp" value="16"/>"#,
+            r#"<default name="max_depth" value="-1"/>"#,
+            r#"<rfilter type="box"/>"#,
+            r#"<float name="fov" value="39.3077"#,
+            r#"<emitter type="area"><rgb name="radiance" value="17, 12, 4"/>"#,
+            r#"<integer name="width" value="32"/><integer name="height" value="24"/>"#,
+        ] {
+            assert!(xml.contains(needle), "missing {needle} in\n{xml}");
+        }
+        assert_eq!(
+            xml.matches("<shape type=\"obj\">").count(),
+            scene.objects.len()
+        );
+        // The short box (object 6) is written where it stands at t = 1.
+        let obj = fs::read_to_string(dir.path().join("mesh_6.obj")).unwrap();
+        let first: Vec<f32> = obj.lines().next().unwrap()[2..]
+            .split(' ')
+            .map(|v| v.parse().unwrap())
+            .collect();
+        let p = scene.objects[6]
+            .motion
+            .pose(1.0)
+            .transform_point3(scene.objects[6].mesh.positions[0]);
+        assert_eq!(first, p.to_array().to_vec());
+    }
+
+    #[test]
+    fn two_sided_emission_and_fisheye_are_refused() {
+        let scene = load("furnace");
+        let camera = scene.camera("main").unwrap().perspective(8, 8).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let err = export(&scene, 0.0, &camera, 4, Some(3), dir.path()).unwrap_err();
+        assert!(format!("{err:#}").contains("both sides"), "{err:#}");
+        let fish = scene
+            .camera("main")
+            .unwrap()
+            .with_projection(Projection::Fisheye, 8, 8)
+            .unwrap();
+        assert!(export(&scene, 0.0, &fish, 4, None, dir.path()).is_err());
+    }
 
     #[test]
     fn pfm_rows_run_bottom_up() {

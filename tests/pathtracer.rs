@@ -317,3 +317,43 @@ fn camera_on_a_surface_gives_finite_radiance() {
         }
     }
 }
+
+/// Every ray engine in the build yields the same direct-lighting image up to
+/// rounding at edges (the same random numbers drive both).
+#[test]
+fn backends_render_the_same_image() {
+    let (scene, camera) = cornell(32);
+    let direct = RenderSettings {
+        max_depth: Some(2),
+        ..settings(8, 6)
+    };
+    let images: Vec<RangeImage> = Backend::available()
+        .iter()
+        .map(|&b| render_with(b, &scene, &camera, 0.2, direct).0)
+        .collect();
+    for (b, img) in Backend::available().iter().zip(&images).skip(1) {
+        let base = &images[0];
+        let same = base
+            .radiance
+            .iter()
+            .zip(&img.radiance)
+            .filter(|(x, y)| ((**x - **y).abs() / x.max(Vec3::splat(1e-3))).max_element() < 1e-3)
+            .count();
+        assert!(
+            same as f32 > 0.98 * base.len() as f32,
+            "{b} vs {}: only {same} of {} pixels agree",
+            Backend::available()[0],
+            base.len()
+        );
+        let ids = base
+            .object_id
+            .iter()
+            .zip(&img.object_id)
+            .filter(|(a, b)| a == b)
+            .count();
+        assert!(
+            ids as f32 > 0.99 * base.len() as f32,
+            "{b}: {ids} object ids agree"
+        );
+    }
+}

@@ -21,7 +21,13 @@ use rangewalk::camera::Camera;
 use rangewalk::export::mitsuba;
 use rangewalk::image::NO_HIT;
 use rangewalk::render::{render, RenderSettings};
-use rangewalk::scene::{Bsdf, GlossyModel, Light, Scene};
+use std::sync::Arc;
+
+use glam::Vec2;
+use rangewalk::camera::Projection;
+use rangewalk::scene::{
+    Animation, Bsdf, GlossyModel, Light, Material, Mesh, Motion, Object, Scene, Texture,
+};
 
 const BLOCK: usize = 8;
 const MAX_BIAS: f64 = 0.005;
@@ -354,6 +360,86 @@ fn glossy_sun_matches_mitsuba() {
         camera,
         time: 1.0,
         spp: SPP,
+        max_depth: None,
+    });
+}
+
+/// A textured quad under a point light: a texture exported upside down or
+/// mirrored would move its four coloured quadrants and fail (b).
+#[test]
+fn texture_orientation_matches_mitsuba() {
+    let texture = Texture {
+        source: "quadrants".into(),
+        width: 2,
+        height: 2,
+        texels: vec![
+            Vec3::new(0.9, 0.1, 0.1),
+            Vec3::new(0.1, 0.9, 0.1),
+            Vec3::new(0.1, 0.1, 0.9),
+            Vec3::new(0.9, 0.9, 0.9),
+        ],
+    };
+    let quad = Mesh {
+        positions: vec![
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(1.0, -1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(-1.0, 1.0, 0.0),
+        ],
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+        // Offset so that the texel borders fall inside the quad, not on it.
+        uvs: Some(vec![
+            Vec2::new(0.25, 0.25),
+            Vec2::new(1.25, 0.25),
+            Vec2::new(1.25, 1.25),
+            Vec2::new(0.25, 1.25),
+        ]),
+    };
+    let scene = Scene {
+        source: "textured-quad".into(),
+        objects: vec![Object {
+            name: "quad".into(),
+            mesh: quad,
+            material: 0,
+            motion: Motion::default(),
+        }],
+        materials: vec![Material {
+            name: "quadrants".into(),
+            bsdf: Bsdf::Diffuse {
+                reflectance: Vec3::splat(0.8),
+                texture: Some(Arc::new(texture)),
+            },
+            emission: None,
+        }],
+        lights: vec![Light::Point {
+            position: Vec3::new(0.3, 0.5, -2.0),
+            intensity: Vec3::splat(4.0),
+        }],
+        animation: Animation {
+            start: 0.0,
+            end: 0.0,
+            fps: 1.0,
+        },
+        cameras: Vec::new(),
+        view_space: None,
+        paths: Vec::new(),
+        dropped_triangles: 0,
+    };
+    let camera = Camera::look_at(
+        Vec3::new(0.0, 0.0, -3.0),
+        Vec3::ZERO,
+        Vec3::Y,
+        Projection::Perspective { vfov_deg: 30.0 },
+        64,
+        64,
+    )
+    .unwrap();
+    check(Case {
+        name: "textured-quad",
+        scene,
+        camera,
+        time: 0.0,
+        spp: 64,
         max_depth: None,
     });
 }

@@ -6,13 +6,13 @@
 //! segments from the camera to the emitter. `max_depth = 1` shows emitters
 //! seen directly, `2` adds direct lighting, and so on; `None` is unlimited.
 
-use glam::{Vec2, Vec3};
+use glam::{Affine3A, Vec2, Vec3};
 
 use super::bsdf::{Frame, Lobes};
 use super::lights::Lights;
 use super::rng::Pcg32;
 use crate::accel::{offset_origin, Ray, RayEngine};
-use crate::scene::Scene;
+use crate::scene::{Object, Scene};
 
 /// Segments after which Russian roulette may end a path.
 const ROULETTE_AFTER: u32 = 3;
@@ -24,6 +24,8 @@ pub struct Integrator<'a> {
     pub scene: &'a Scene,
     pub engine: &'a dyn RayEngine,
     pub lights: Lights,
+    /// Each object's pose at the rendered time.
+    pub poses: Vec<Affine3A>,
     /// Longest path in segments (`u32::MAX` for none).
     pub max_depth: u32,
 }
@@ -42,6 +44,18 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
 }
 
 impl Integrator<'_> {
+    /// The hit point from the triangle's vertices and the barycentrics, not
+    /// from `origin + t dir`: its rounding error then scales with the
+    /// triangle's coordinates, which `offset_origin` accounts for, instead of
+    /// with the ray origin's (a far camera looking at a point near the world
+    /// origin would otherwise start shadow rays behind the surface).
+    fn hit_point(&self, object: &Object, id: u32, primitive: u32, u: f32, v: f32) -> Vec3 {
+        let [a, b, c] = object.mesh.triangles[primitive as usize];
+        let pos = &object.mesh.positions;
+        let local = pos[a as usize] * (1.0 - u - v) + pos[b as usize] * u + pos[c as usize] * v;
+        self.poses[id as usize].transform_point3(local)
+    }
+
     /// Radiance arriving along `ray` (one sample); `rays` counts every ray
     /// traced.
     pub fn radiance(&self, mut ray: Ray, rng: &mut Pcg32, rays: &mut u64) -> Vec3 {
@@ -65,14 +79,14 @@ impl Integrator<'_> {
                 }
                 break;
             };
-            let p = ray.at(hit.t);
+            let object = &self.scene.objects[hit.object as usize];
+            let p = self.hit_point(object, hit.object, hit.primitive, hit.u, hit.v);
             let ng = hit.normal;
             let wo = -ray.dir.normalize();
             let cos_o = ng.dot(wo);
             if !(p.is_finite() && ng.is_finite() && cos_o.is_finite()) || cos_o == 0.0 {
                 break;
             }
-            let object = &self.scene.objects[hit.object as usize];
             let material = &self.scene.materials[object.material];
             if let Some(em) = material.emission {
                 if em.two_sided || cos_o > 0.0 {

@@ -82,6 +82,7 @@ pub fn render(
         scene,
         engine,
         lights: Lights::new(scene, time),
+        poses: scene.at(time),
         max_depth: settings.max_depth.unwrap_or(u32::MAX),
     };
     let meta = RangeMeta {

@@ -24,7 +24,7 @@ use obvhs::{
     aabb::Aabb,
     cwbvh::{
         builder::{build_cwbvh, build_cwbvh_from_tris},
-        CwBvh,
+        CwBvh, Traversal,
     },
     triangle::Triangle,
     BvhBuildParams,
@@ -44,6 +44,15 @@ const MAX_DEPTH: usize = 32;
 /// two cores while tracing close to the slowest presets.
 fn blas_params() -> BvhBuildParams {
     BvhBuildParams::fast_build()
+}
+
+/// The top level holds few boxes, and entering an instance costs a ray
+/// transform and a traversal, so each leaf holds a single instance.
+fn tlas_params() -> BvhBuildParams {
+    BvhBuildParams {
+        max_prims_per_leaf: 1,
+        ..BvhBuildParams::fast_build()
+    }
 }
 
 /// The per-mesh (bottom-level) hierarchy and its triangles, stored in the
@@ -117,6 +126,9 @@ fn depth(bvh: &CwBvh) -> usize {
 #[derive(Clone, Copy)]
 struct Placement {
     world_to_object: Affine3A,
+    /// Rays of identity instances (static geometry given in world space)
+    /// skip the transform.
+    identity: bool,
     /// Maps object-space winding normals to world-space ones: the inverse
     /// transpose, negated for mirroring transforms, since mirroring reverses
     /// the winding of the world-space triangle.
@@ -136,6 +148,7 @@ impl Placement {
         }
         Ok(Self {
             world_to_object,
+            identity: *object_to_world == Affine3A::IDENTITY,
             normal: world_to_object.matrix3.transpose() * det.signum(),
         })
     }
@@ -207,6 +220,8 @@ impl BvhEngine {
             slot: NONE,
         };
         let mut state = self.tlas.new_traversal(dir);
+        // One bottom-level traversal state per ray, re-armed per instance.
+        let mut inner = Traversal::default();
         let mut node;
         'done: {
             obvhs::traverse!(
@@ -217,7 +232,9 @@ impl BvhEngine {
                 {
                     let instance = self.tlas_instances
                         [self.tlas.primitive_indices[state.primitive_id as usize] as usize];
-                    if self.trace_instance::<ANY>(instance, origin, dir, ray.tmin, &mut best) && ANY
+                    if self.trace_instance::<ANY>(
+                        instance, origin, dir, ray.tmin, &mut best, &mut inner,
+                    ) && ANY
                     {
                         break 'done;
                     }
@@ -236,17 +253,25 @@ impl BvhEngine {
         dir: Vec3A,
         tmin: f32,
         best: &mut Closest,
+        state: &mut Traversal,
     ) -> bool {
         let Some(blas) = &self.blas[instance as usize] else {
             return false;
         };
-        let to_object = &self.placements[instance as usize].world_to_object;
-        let o = to_object.transform_point3a(origin);
-        let d = to_object.transform_vector3a(dir);
+        let placement = &self.placements[instance as usize];
+        let (o, d) = if placement.identity {
+            (origin, dir)
+        } else {
+            let to_object = &placement.world_to_object;
+            (
+                to_object.transform_point3a(origin),
+                to_object.transform_vector3a(dir),
+            )
+        };
         let node_ray = NodeRay::new(o, d);
         let tri_ray = ShearedRay::new(o, d);
         let mut found = false;
-        let mut state = blas.bvh.new_traversal(d);
+        state.reinit(d);
         let mut node;
         'done: {
             obvhs::traverse!(
@@ -372,11 +397,7 @@ impl InstancedEngine for BvhEngine {
         self.tlas = if boxes.is_empty() {
             CwBvh::default()
         } else {
-            build_cwbvh(
-                &boxes,
-                BvhBuildParams::fast_build(),
-                &mut Duration::default(),
-            )
+            build_cwbvh(&boxes, tlas_params(), &mut Duration::default())
         };
         self.tlas_instances = instances;
         self.placements = placements;

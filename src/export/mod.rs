@@ -1,1 +1,3 @@
 //! Scene export to other renderers, for validation.
+
+pub mod mitsuba;

@@ -154,8 +154,10 @@ mod tests {
     }
 
     proptest! {
-        /// Rays through a point on the shared diagonal of a quad hit one of
-        /// its two triangles: no gap along the seam.
+        /// Rays through a point on the shared diagonal of a planar quad hit
+        /// one of its two triangles: no gap along the seam. (The quad must be
+        /// exactly planar: across the fold of a bent quad a ray passing an
+        /// ulp beside the diagonal may rightly miss both triangles.)
         #[test]
         fn shared_edges_leave_no_gap(
             s in 0.0f32..1.0,
@@ -167,8 +169,8 @@ mod tests {
             let q = [
                 Vec3A::from(base + Vec3::new(0.0, 0.0, 0.0) * k),
                 Vec3A::from(base + Vec3::new(1.3, 0.1, 0.0) * k),
-                Vec3A::from(base + Vec3::new(1.1, 0.9, 0.2) * k),
-                Vec3A::from(base + Vec3::new(-0.2, 1.0, 0.1) * k),
+                Vec3A::from(base + Vec3::new(1.1, 0.9, 0.0) * k),
+                Vec3A::from(base + Vec3::new(-0.2, 1.0, 0.0) * k),
             ];
             let on_edge = q[0] + (q[2] - q[0]) * s;
             let origin = on_edge + Vec3A::new(ox, oy, oz) * k;

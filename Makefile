@@ -13,7 +13,7 @@ PY_PACKAGES := mitsuba==3.9.1 numpy
 DEMO_SCENE := scenes/cornell-box/scene.toml
 DEMO_TIMES := 0 0.5 1
 DEMO_SIZE := 512x512
-DEMO_SPP := 256
+DEMO_SPP := 512
 
 export RANGEWALK_PYTHON := $(abspath $(PYTHON))
 

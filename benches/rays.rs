@@ -13,6 +13,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use glam::{Affine3A, Quat, Vec3};
 use rangewalk::accel::{self, offset_origin, Backend, InstancedEngine, MeshGeometry, Ray};
 use rangewalk::camera::{Camera, Projection};
+use rangewalk::scene::Scene;
 
 /// Pixels of the primary-ray image, and rays of the other kinds.
 const WIDTH: u32 = 256;
@@ -78,43 +79,6 @@ fn terrain() -> MeshGeometry {
     })
 }
 
-fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> MeshGeometry {
-    MeshGeometry {
-        positions: vec![a, b, c, d],
-        triangles: vec![[0, 1, 2], [0, 2, 3]],
-    }
-}
-
-fn unit_box() -> MeshGeometry {
-    let positions = (0..8)
-        .map(|c| {
-            Vec3::new(
-                (c & 1) as f32 - 0.5,
-                ((c >> 1) & 1) as f32,
-                ((c >> 2) & 1) as f32 - 0.5,
-            )
-        })
-        .collect();
-    let triangles = vec![
-        [0, 2, 3],
-        [0, 3, 1],
-        [4, 5, 7],
-        [4, 7, 6],
-        [0, 1, 5],
-        [0, 5, 4],
-        [2, 6, 7],
-        [2, 7, 3],
-        [0, 4, 6],
-        [0, 6, 2],
-        [1, 3, 7],
-        [1, 7, 5],
-    ];
-    MeshGeometry {
-        positions,
-        triangles,
-    }
-}
-
 struct BenchScene {
     name: &'static str,
     meshes: Vec<MeshGeometry>,
@@ -161,82 +125,27 @@ fn big_scene() -> BenchScene {
     }
 }
 
-/// A Cornell-box-like room (millimetres): floor, ceiling, back and side
-/// walls, a ceiling light, a front wall of four quads around the opening the
-/// camera looks through, and two boxes: ten quads and two boxes.
+/// The bundled Cornell box at t = 0, seen by its camera `main`; shadow rays
+/// go to its ceiling light.
 fn cornell() -> BenchScene {
-    let (w, h, d) = (555.0, 548.8, 559.2);
-    let p = Vec3::new;
-    let (x0, x1, y0, y1) = (150.0, 405.0, 120.0, 430.0);
-    let mut meshes = vec![
-        quad(
-            p(0.0, 0.0, 0.0),
-            p(0.0, 0.0, d),
-            p(w, 0.0, d),
-            p(w, 0.0, 0.0),
-        ),
-        quad(p(0.0, h, 0.0), p(w, h, 0.0), p(w, h, d), p(0.0, h, d)),
-        quad(p(0.0, 0.0, d), p(0.0, h, d), p(w, h, d), p(w, 0.0, d)),
-        quad(p(w, 0.0, 0.0), p(w, 0.0, d), p(w, h, d), p(w, h, 0.0)),
-        quad(
-            p(0.0, 0.0, 0.0),
-            p(0.0, h, 0.0),
-            p(0.0, h, d),
-            p(0.0, 0.0, d),
-        ),
-        quad(
-            p(213.0, h - 0.5, 227.0),
-            p(343.0, h - 0.5, 227.0),
-            p(343.0, h - 0.5, 332.0),
-            p(213.0, h - 0.5, 332.0),
-        ),
-        quad(
-            p(0.0, 0.0, 0.0),
-            p(w, 0.0, 0.0),
-            p(w, y0, 0.0),
-            p(0.0, y0, 0.0),
-        ),
-        quad(p(0.0, y1, 0.0), p(w, y1, 0.0), p(w, h, 0.0), p(0.0, h, 0.0)),
-        quad(
-            p(0.0, y0, 0.0),
-            p(x0, y0, 0.0),
-            p(x0, y1, 0.0),
-            p(0.0, y1, 0.0),
-        ),
-        quad(p(x1, y0, 0.0), p(w, y0, 0.0), p(w, y1, 0.0), p(x1, y1, 0.0)),
-    ];
-    let mut transforms = vec![Affine3A::IDENTITY; meshes.len()];
-    meshes.push(unit_box());
-    transforms.push(Affine3A::from_scale_rotation_translation(
-        Vec3::splat(165.0),
-        Quat::from_rotation_y(-0.29),
-        p(185.0, 0.0, 169.0),
-    ));
-    meshes.push(unit_box());
-    transforms.push(Affine3A::from_scale_rotation_translation(
-        p(165.0, 330.0, 165.0),
-        Quat::from_rotation_y(0.29),
-        p(368.0, 0.0, 351.0),
-    ));
-    let camera = Camera::look_at(
-        p(278.0, 273.0, -800.0),
-        p(278.0, 273.0, 0.0),
-        Vec3::Y,
-        Projection::Perspective { vfov_deg: 39.3 },
-        WIDTH,
-        HEIGHT,
-    )
-    .expect("valid camera");
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-box/scene.toml");
+    let scene = Scene::load(path).expect("the bundled Cornell box loads");
+    let camera = scene
+        .camera("main")
+        .and_then(|c| c.perspective(WIDTH, HEIGHT))
+        .expect("the Cornell box has a camera `main`");
+    let light = scene
+        .objects
+        .iter()
+        .find(|o| o.name == "light")
+        .expect("the Cornell box has a light");
+    let v = &light.mesh.positions;
     BenchScene {
         name: "cornell",
-        meshes,
-        transforms,
+        meshes: scene.geometry(),
+        transforms: scene.at(0.0),
         camera,
-        light: (
-            p(213.0, h - 1.0, 227.0),
-            p(130.0, 0.0, 0.0),
-            p(0.0, 0.0, 105.0),
-        ),
+        light: (v[0], v[1] - v[0], v[3] - v[0]),
     }
 }
 

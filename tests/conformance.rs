@@ -263,70 +263,6 @@ fn soups() -> TestScene {
     }
 }
 
-/// A Cornell-box-like room (millimetre units): five walls, a light just
-/// below the ceiling and two boxes that turn and slide over time.
-fn cornell() -> TestScene {
-    let (w, h, d) = (555.0, 548.8, 559.2);
-    let p = Vec3::new;
-    let mut meshes = vec![
-        quad(
-            p(0.0, 0.0, 0.0),
-            p(0.0, 0.0, d),
-            p(w, 0.0, d),
-            p(w, 0.0, 0.0),
-        ),
-        quad(p(0.0, h, 0.0), p(w, h, 0.0), p(w, h, d), p(0.0, h, d)),
-        quad(p(0.0, 0.0, d), p(0.0, h, d), p(w, h, d), p(w, 0.0, d)),
-        quad(p(w, 0.0, 0.0), p(w, 0.0, d), p(w, h, d), p(w, h, 0.0)),
-        quad(
-            p(0.0, 0.0, 0.0),
-            p(0.0, h, 0.0),
-            p(0.0, h, d),
-            p(0.0, 0.0, d),
-        ),
-        quad(
-            p(213.0, h - 0.5, 227.0),
-            p(343.0, h - 0.5, 227.0),
-            p(343.0, h - 0.5, 332.0),
-            p(213.0, h - 0.5, 332.0),
-        ),
-    ];
-    let mut motion: Vec<Motion> = meshes
-        .iter()
-        .map(|_| Motion::still(Affine3A::IDENTITY))
-        .collect();
-    let unit = box_mesh(Vec3::new(-0.5, 0.0, -0.5), Vec3::new(0.5, 1.0, 0.5), true);
-    meshes.push(unit.clone());
-    motion.push(Motion {
-        base: Affine3A::from_scale_rotation_translation(
-            Vec3::new(165.0, 165.0, 165.0),
-            Quat::from_rotation_y(-0.29),
-            Vec3::new(185.0, 0.0, 169.0),
-        ),
-        axis: Vec3::Y,
-        spin: 0.6,
-        drift: Vec3::new(40.0, 0.0, 20.0),
-    });
-    meshes.push(unit);
-    motion.push(Motion {
-        base: Affine3A::from_scale_rotation_translation(
-            Vec3::new(165.0, 330.0, 165.0),
-            Quat::from_rotation_y(0.29),
-            Vec3::new(368.0, 0.0, 351.0),
-        ),
-        axis: Vec3::Y,
-        spin: -0.4,
-        drift: Vec3::new(0.0, 0.0, -60.0),
-    });
-    TestScene {
-        name: "cornell",
-        meshes,
-        motion,
-        lo: p(1.0, 1.0, -300.0),
-        hi: p(w - 1.0, h - 1.0, d - 1.0),
-    }
-}
-
 // ---------------------------------------------------------------------------
 // The reference: every triangle in world space, Möller–Trumbore in f64.
 
@@ -608,7 +544,7 @@ fn agree_with_reference(
 
 #[test]
 fn engines_agree_with_the_reference_on_generated_scenes() {
-    for scene in [box_rooms(), soups(), cornell()] {
+    for scene in [box_rooms(), soups()] {
         let at = |t: f32| scene.at(t);
         agree_with_reference(
             scene.name,

@@ -307,24 +307,30 @@ mod tests {
         );
     }
 
+    /// Uniform `f32` in `[lo, hi)` drawn through integers: proptest's own float
+    /// range sampler can trip an internal assertion on some seeds.
+    fn real(lo: f32, hi: f32) -> impl Strategy<Value = f32> {
+        (0u32..1 << 24).prop_map(move |k| lo + (hi - lo) * (k as f32 / (1u32 << 24) as f32))
+    }
+
     proptest! {
         #[test]
-        fn perspective_round_trip(x in 0.0f32..640.0, y in 0.0f32..480.0) {
+        fn perspective_round_trip(x in real(0.0, 640.0), y in real(0.0, 480.0)) {
             round_trip(&cam(Projection::Perspective { vfov_deg: 39.3077 }, 640, 480), x, y, 2e-3);
         }
 
         #[test]
-        fn fisheye_round_trip(x in 0.0f32..512.0, y in 0.0f32..512.0) {
+        fn fisheye_round_trip(x in real(0.0, 512.0), y in real(0.0, 512.0)) {
             round_trip(&cam(Projection::Fisheye, 512, 512), x, y, 2e-2);
         }
 
         #[test]
-        fn sphere_round_trip(x in 0.0f32..256.0, y in 0.0f32..256.0) {
+        fn sphere_round_trip(x in real(0.0, 256.0), y in real(0.0, 256.0)) {
             round_trip(&cam(Projection::Sphere, 256, 256), x, y, 2e-2);
         }
 
         #[test]
-        fn sphere_covers_every_direction(x in -1.0f32..1.0, y in -1.0f32..1.0, z in -1.0f32..1.0) {
+        fn sphere_covers_every_direction(x in real(-1.0, 1.0), y in real(-1.0, 1.0), z in real(-1.0, 1.0)) {
             let d = Vec3::new(x, y, z);
             prop_assume!(d.length() > 1e-3);
             let d = d.normalize();

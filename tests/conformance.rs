@@ -644,13 +644,19 @@ fn bad_input_is_an_error_naming_the_mesh() {
 
 /// A transform drawn from proptest: rotation, non-uniform scale (possibly
 /// mirroring) and translation.
+/// Uniform `f32` in `[lo, hi)` drawn through integers: proptest's own float
+/// range sampler can trip an internal assertion on some seeds.
+fn real(lo: f32, hi: f32) -> impl Strategy<Value = f32> {
+    (0u32..1 << 24).prop_map(move |k| lo + (hi - lo) * (k as f32 / (1u32 << 24) as f32))
+}
+
 fn any_transform() -> impl Strategy<Value = Affine3A> {
     (
-        prop::array::uniform3(-1.0f32..1.0),
-        0.0f32..6.2,
-        prop::array::uniform3(0.3f32..3.0),
+        prop::array::uniform3(real(-1.0, 1.0)),
+        real(0.0, 6.2),
+        prop::array::uniform3(real(0.3, 3.0)),
         prop::array::uniform3(any::<bool>()),
-        prop::array::uniform3(-5.0f32..5.0),
+        prop::array::uniform3(real(-5.0, 5.0)),
     )
         .prop_map(|(axis, angle, scale, mirror, shift)| {
             let axis = Vec3::from(axis).normalize_or(Vec3::Y);
@@ -664,7 +670,7 @@ fn any_transform() -> impl Strategy<Value = Affine3A> {
 }
 
 fn any_point() -> impl Strategy<Value = Vec3> {
-    prop::array::uniform3(-2.0f32..2.0).prop_map(Vec3::from)
+    prop::array::uniform3(real(-2.0, 2.0)).prop_map(Vec3::from)
 }
 
 proptest! {
@@ -676,10 +682,10 @@ proptest! {
     fn rays_find_triangle_points(
         corners in prop::array::uniform3(any_point()),
         m in any_transform(),
-        (a, b) in (0.02f32..0.96, 0.02f32..0.96).prop_filter("inside", |(a, b)| a + b < 0.98),
-        outside in (0.02f32..0.5, 0usize..3),
+        (a, b) in (real(0.02, 0.96), real(0.02, 0.96)).prop_filter("inside", |(a, b)| a + b < 0.98),
+        outside in (real(0.02, 0.5), 0usize..3),
         from in any_point(),
-        length in 0.1f32..10.0,
+        length in real(0.1, 10.0),
     ) {
         let [p0, p1, p2] = corners;
         let n_obj = (p1 - p0).cross(p2 - p0);
@@ -720,14 +726,14 @@ proptest! {
     /// that face at the analytic distance.
     #[test]
     fn rays_meet_box_faces(
-        lo in prop::array::uniform3(-3.0f32..0.0).prop_map(Vec3::from),
-        size in prop::array::uniform3(0.2f32..4.0).prop_map(Vec3::from),
-        inside in prop::array::uniform3(0.01f32..0.99).prop_map(Vec3::from),
-        dir in prop::array::uniform3(-1.0f32..1.0).prop_map(Vec3::from),
+        lo in prop::array::uniform3(real(-3.0, 0.0)).prop_map(Vec3::from),
+        size in prop::array::uniform3(real(0.2, 4.0)).prop_map(Vec3::from),
+        inside in prop::array::uniform3(real(0.01, 0.99)).prop_map(Vec3::from),
+        dir in prop::array::uniform3(real(-1.0, 1.0)).prop_map(Vec3::from),
         face in 0usize..6,
-        on_face in prop::array::uniform2(0.01f32..0.99),
-        distance in 0.1f32..5.0,
-        slant in prop::array::uniform2(-0.8f32..0.8),
+        on_face in prop::array::uniform2(real(0.01, 0.99)),
+        distance in real(0.1, 5.0),
+        slant in prop::array::uniform2(real(-0.8, 0.8)),
         outward in any::<bool>(),
     ) {
         prop_assume!(dir.length() > 0.1);

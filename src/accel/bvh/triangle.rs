@@ -153,6 +153,12 @@ mod tests {
         assert!(still.intersect(tri.0, tri.1, tri.2, 0.0, 10.0).is_none());
     }
 
+    /// Uniform `f32` in `[lo, hi)` drawn through integers: proptest's own float
+    /// range sampler can trip an internal assertion on some seeds.
+    fn real(lo: f32, hi: f32) -> impl Strategy<Value = f32> {
+        (0u32..1 << 24).prop_map(move |k| lo + (hi - lo) * (k as f32 / (1u32 << 24) as f32))
+    }
+
     proptest! {
         /// Rays through a point on the shared diagonal of a planar quad hit
         /// one of its two triangles: no gap along the seam. (The quad must be
@@ -160,9 +166,9 @@ mod tests {
         /// ulp beside the diagonal may rightly miss both triangles.)
         #[test]
         fn shared_edges_leave_no_gap(
-            s in 0.0f32..1.0,
-            ox in -3.0f32..3.0, oy in -3.0f32..3.0, oz in 0.5f32..3.0,
-            shift in -0.5f32..0.5, scale_exp in -4i32..5,
+            s in real(0.0, 1.0),
+            ox in real(-3.0, 3.0), oy in real(-3.0, 3.0), oz in real(0.5, 3.0),
+            shift in real(-0.5, 0.5), scale_exp in -4i32..5,
         ) {
             let k = 10f32.powi(scale_exp);
             let base = Vec3::new(shift, 0.37, -shift) * k;

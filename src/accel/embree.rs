@@ -67,9 +67,10 @@ impl EmbreeEngine {
 }
 
 /// Whether Embree's 16-ray packet traversal pays off for these rays: all
-/// directions within about 25 degrees of the first. Measured on 512x512 rays
-/// over 800k triangles, packets were 1.5x faster than single rays for camera
-/// rays and 2x slower for random rays; short tails stay single too.
+/// directions within about 25 degrees of the first. In `benches/rays.rs`
+/// packets are 1.7-2x faster than single rays for camera and shadow rays on
+/// the Cornell box; random rays would be slower, so they and short tails stay
+/// single.
 fn coherent(rays: &[Ray]) -> bool {
     const MIN_COS: f32 = 0.9;
     const MIN_LANES: usize = PACKET / 2;

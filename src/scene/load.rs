@@ -224,40 +224,38 @@ pub fn load(path: PathBuf) -> Result<Scene> {
     let mut materials = Vec::new();
     for m in &parsed.materials {
         let material = build_material(&src.at(m), m.get_ref(), &dir)?;
-        ensure!(
-            !materials.iter().any(|o: &Material| o.name == material.name),
-            "{}: material `{}` is defined twice",
-            src.at(m),
-            material.name
-        );
+        unique(
+            &src.at(m),
+            "material",
+            &material.name,
+            materials.iter().map(|x: &Material| &x.name),
+        )?;
         materials.push(material);
     }
 
     let mut objects = Vec::new();
     let mut dropped_triangles = 0;
-    let mut obj_cache: HashMap<PathBuf, Arc<ObjFile>> = HashMap::new();
+    // Objects often share one OBJ file (one group each): read it once.
+    let mut obj_files: HashMap<PathBuf, ObjFile> = HashMap::new();
     for o in &parsed.objects {
         let at = src.at(o);
         let o = o.get_ref();
-        ensure!(
-            !objects.iter().any(|x: &Object| x.name == o.name),
-            "{at}: object `{}` is defined twice",
-            o.name
-        );
+        unique(
+            &at,
+            "object",
+            &o.name,
+            objects.iter().map(|x: &Object| &x.name),
+        )?;
         let mesh_path = dir.join(&o.mesh);
-        let obj = match obj_cache.get(&mesh_path) {
-            Some(f) => f.clone(),
-            None => {
-                let f = Arc::new(ObjFile::read(&mesh_path)?);
-                obj_cache.insert(mesh_path.clone(), f.clone());
-                f
-            }
-        };
+        if !obj_files.contains_key(&mesh_path) {
+            obj_files.insert(mesh_path.clone(), ObjFile::read(&mesh_path)?);
+        }
+        let obj = &obj_files[&mesh_path];
         let (mesh, mtl_name, dropped) = obj
             .mesh(o.group.as_deref())
             .with_context(|| format!("{at}: object `{}`", o.name))?;
         dropped_triangles += dropped;
-        let material = resolve_material(&at, o, mtl_name.as_deref(), &obj, &mut materials, &dir)?;
+        let material = resolve_material(&at, o, mtl_name.as_deref(), obj, &mut materials, &dir)?;
         let motion = build_motion(&src, &at, o)?;
         objects.push(Object {
             name: o.name.clone(),
@@ -281,11 +279,12 @@ pub fn load(path: PathBuf) -> Result<Scene> {
     for c in &parsed.cameras {
         let at = src.at(c);
         let c = c.get_ref();
-        ensure!(
-            !cameras.iter().any(|x: &CameraDesc| x.name == c.name),
-            "{at}: camera `{}` is defined twice",
-            c.name
-        );
+        unique(
+            &at,
+            "camera",
+            &c.name,
+            cameras.iter().map(|x: &CameraDesc| &x.name),
+        )?;
         let what = format!("{at}: camera `{}`", c.name);
         let (direction, up) = pose(&what, c.position, c.look_at, c.direction, c.up, c.vfov)?;
         cameras.push(CameraDesc {
@@ -347,6 +346,19 @@ pub fn load(path: PathBuf) -> Result<Scene> {
         paths,
         dropped_triangles,
     })
+}
+
+fn unique<'a>(
+    at: &str,
+    kind: &str,
+    name: &str,
+    mut earlier: impl Iterator<Item = &'a String>,
+) -> Result<()> {
+    ensure!(
+        !earlier.any(|n| n == name),
+        "{at}: {kind} `{name}` is defined twice"
+    );
+    Ok(())
 }
 
 fn finite(what: &str, field: &str, values: &[f32]) -> Result<()> {
@@ -951,6 +963,13 @@ vfov = 40
                 assert!(msg.contains(n), "`{n}` missing from: {msg}");
             }
         }
+    }
+
+    #[test]
+    fn names_must_be_unique() {
+        let twice = format!("{GOOD}\n[[cameras]]\nname = \"main\"\nposition = [0, 0, -1]\ndirection = [0, 0, 1]\nvfov = 30\n");
+        let msg = load_err(&twice);
+        assert!(msg.contains("camera `main` is defined twice"), "{msg}");
     }
 
     #[test]

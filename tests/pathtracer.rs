@@ -228,12 +228,7 @@ fn scaled_cornell_boxes_render_the_same_image() {
             ((a - b) / a).abs().max_element() < 1e-4,
             "{name}: direct mean {b} vs {a}"
         );
-        let same = base
-            .radiance
-            .iter()
-            .zip(&img.radiance)
-            .filter(|(x, y)| ((**x - **y).abs() / x.max(Vec3::splat(1e-3))).max_element() < 1e-3)
-            .count();
+        let same = agreeing_pixels(&base, &img);
         assert!(
             same as f32 > 0.99 * base.len() as f32,
             "{name}: only {same} of {} pixels agree",
@@ -333,12 +328,7 @@ fn backends_render_the_same_image() {
         .collect();
     for (b, img) in Backend::available().iter().zip(&images).skip(1) {
         let base = &images[0];
-        let same = base
-            .radiance
-            .iter()
-            .zip(&img.radiance)
-            .filter(|(x, y)| ((**x - **y).abs() / x.max(Vec3::splat(1e-3))).max_element() < 1e-3)
-            .count();
+        let same = agreeing_pixels(base, img);
         assert!(
             same as f32 > 0.98 * base.len() as f32,
             "{b} vs {}: only {same} of {} pixels agree",
@@ -356,4 +346,14 @@ fn backends_render_the_same_image() {
             "{b}: {ids} object ids agree"
         );
     }
+}
+
+/// Pixels whose radiance agrees within 0.1 % (relative, with a floor of 1e-3
+/// for dark pixels).
+fn agreeing_pixels(a: &RangeImage, b: &RangeImage) -> usize {
+    a.radiance
+        .iter()
+        .zip(&b.radiance)
+        .filter(|(x, y)| ((**x - **y).abs() / x.max(Vec3::splat(1e-3))).max_element() < 1e-3)
+        .count()
 }

@@ -8,8 +8,8 @@ CARGO ?= cargo
 VENV := .venv
 PYTHON := $(VENV)/bin/python
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-DEB_PACKAGES := libembree-dev libopenimageio-dev libclang-dev pkg-config g++ python3 python3-venv
-PY_PACKAGES := mitsuba==3.9.1 numpy
+DEB_PACKAGES := libembree-dev libopenimageio-dev libclang-dev pkg-config g++ python3 python3-venv fonts-dejavu-core
+PY_PACKAGES := mitsuba==3.9.1 flip-evaluator==1.7 numpy
 DEMO_SCENE := scenes/cornell-box/scene.toml
 DEMO_TIMES := 0 0.5 1
 DEMO_SIZE := 512x512
@@ -47,12 +47,13 @@ debs:
 	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $$missing; \
 	fi
 
-# Mitsuba 3, the independent renderer the validation tests compare against.
+# Mitsuba 3, the independent renderer the validation tests compare against,
+# and NVIDIA FLIP, the perceptual error of the experiment reports.
 venv: $(VENV)/.installed
-$(VENV)/.installed:
+$(VENV)/.installed: Makefile
 	python3 -m venv $(VENV)
 	$(PYTHON) -m pip install -q --disable-pip-version-check $(PY_PACKAGES)
-	$(PYTHON) -c "import mitsuba; mitsuba.set_variant('scalar_rgb')"
+	$(PYTHON) -c "import mitsuba, flip_evaluator; mitsuba.set_variant('scalar_rgb')"
 	touch $@
 
 build:

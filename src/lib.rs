@@ -9,7 +9,9 @@ pub mod accel;
 pub mod camera;
 #[cfg(feature = "embree")]
 pub mod embree;
+pub mod eval;
 pub mod export;
 pub mod image;
+pub mod radiosity;
 pub mod render;
 pub mod scene;

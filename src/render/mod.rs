@@ -22,6 +22,7 @@ use crate::scene::Scene;
 pub mod bsdf;
 mod integrator;
 mod lights;
+pub mod multipass;
 mod rng;
 
 use integrator::Integrator;

@@ -1,0 +1,1 @@
+//! Form factors: point-to-polygon analytic, visibility by shadow rays.

@@ -14,8 +14,12 @@
 //! W·m⁻²·sr⁻¹; a Lambertian surface of albedo ρ under irradiance `E` leaves
 //! radiance `ρ E / π`.
 
+use std::collections::HashMap;
+
 use anyhow::{ensure, Result};
 use glam::Vec3;
+
+use crate::scene::{Bsdf, Scene};
 
 pub mod bake;
 pub mod formfactor;
@@ -122,4 +126,150 @@ pub struct IndirectSolution {
     /// direct light themselves.
     pub direct: Vec<Vec3>,
     pub stats: SolveStats,
+}
+
+impl Patch {
+    pub fn area(&self) -> f32 {
+        let [a, b, c] = self.vertices;
+        0.5 * (b - a).cross(c - a).length()
+    }
+
+    /// Unit normal of the front side, by winding.
+    pub fn normal(&self) -> Vec3 {
+        let [a, b, c] = self.vertices;
+        (b - a).cross(c - a).normalize_or_zero()
+    }
+}
+
+/// The part of a material that radiosity transports: its diffuse albedo.
+pub fn diffuse_albedo(bsdf: &Bsdf) -> Vec3 {
+    match bsdf {
+        Bsdf::Diffuse {
+            reflectance,
+            texture,
+        } => match texture {
+            Some(t) if !t.texels.is_empty() => {
+                let sum: Vec3 = t.texels.iter().copied().sum();
+                *reflectance * sum / t.texels.len() as f32
+            }
+            _ => *reflectance,
+        },
+        Bsdf::Glossy { diffuse, .. } => *diffuse,
+        Bsdf::Mirror { .. } => Vec3::ZERO,
+    }
+}
+
+impl Simplified {
+    /// Every triangle of the scene as one patch, nothing left out: the exact
+    /// geometry, for small scenes and as the baseline the simplification is
+    /// measured against.
+    pub fn whole(scene: &Scene) -> Simplified {
+        let triangles = scene.objects.iter().enumerate().flat_map(|(i, o)| {
+            o.mesh
+                .triangles
+                .iter()
+                .map(move |t| (i as u32, t.map(|v| o.mesh.positions[v as usize])))
+        });
+        let mut s = Simplified::from_triangles(scene, triangles);
+        s.stats.initial_surfaces = s.patches.len();
+        s.stats.final_surfaces = s.patches.len();
+        s
+    }
+
+    /// Patches from object-space triangles `(object, corners)`, with
+    /// materials from `scene`. Corners of one object that coincide and face
+    /// the same way share one record; zero-area triangles are skipped.
+    /// Statistics are left for the caller to fill in.
+    pub fn from_triangles(
+        scene: &Scene,
+        triangles: impl IntoIterator<Item = (u32, [Vec3; 3])>,
+    ) -> Simplified {
+        let mut records = Vec::new();
+        let mut index: HashMap<(u32, [i64; 3], [i32; 3]), u32> = HashMap::new();
+        let mut patches = Vec::new();
+        for (object, vertices) in triangles {
+            let o = &scene.objects[object as usize];
+            let m = &scene.materials[o.material];
+            let mut patch = Patch {
+                object,
+                vertices,
+                corners: [0; 3],
+                reflectance: diffuse_albedo(&m.bsdf),
+                emission: m.emission.map_or(Vec3::ZERO, |e| e.radiance),
+                two_sided: m.emission.is_some_and(|e| e.two_sided),
+            };
+            let n = patch.normal();
+            if patch.area() <= 0.0 || !n.is_finite() || n == Vec3::ZERO {
+                continue;
+            }
+            // Weld to a grid of 2^-20 of the object's extent: far finer than
+            // any patch, coarse enough to merge copies of one OBJ vertex.
+            let scale = object_extent(&o.mesh.positions) * (1.0 / (1u64 << 20) as f32);
+            let qn = (n * 1000.0).round().as_ivec3().to_array();
+            for (k, &p) in vertices.iter().enumerate() {
+                let qp = (p / scale).round().as_i64vec3().to_array();
+                patch.corners[k] = *index.entry((object, qp, qn)).or_insert_with(|| {
+                    records.push(RecordPoint {
+                        object,
+                        position: p,
+                        normal: n,
+                    });
+                    (records.len() - 1) as u32
+                });
+            }
+            patches.push(patch);
+        }
+        Simplified {
+            patches,
+            records,
+            stats: SimplifyStats::default(),
+        }
+    }
+}
+
+fn object_extent(positions: &[Vec3]) -> f32 {
+    let (lo, hi) = positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let e = (hi - lo).max_element();
+    if e.is_finite() && e > 0.0 {
+        e
+    } else {
+        1.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn whole_cornell_box_shares_records_between_coplanar_triangles() {
+        let scene = Scene::load(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/scenes/cornell-box/scene.toml"
+        ))
+        .unwrap();
+        let s = Simplified::whole(&scene);
+        let tris: usize = scene.objects.iter().map(|o| o.mesh.triangles.len()).sum();
+        assert_eq!(s.patches.len(), tris);
+        // The floor is one quad: two triangles, four records.
+        let floor: Vec<&Patch> = s.patches.iter().filter(|p| p.object == 0).collect();
+        assert_eq!(floor.len(), 2);
+        let mut corners: Vec<u32> = floor.iter().flat_map(|p| p.corners).collect();
+        corners.sort();
+        corners.dedup();
+        assert_eq!(corners.len(), 4);
+        // A box's faces meet at right angles: no record is shared between
+        // faces, so each of its 5 quads has 4 of its own.
+        let short = s.patches.iter().filter(|p| p.object == 6);
+        let mut c: Vec<u32> = short.flat_map(|p| p.corners).collect();
+        c.sort();
+        c.dedup();
+        assert_eq!(c.len(), 20);
+        for r in &s.records {
+            assert!((r.normal.length() - 1.0).abs() < 1e-5);
+        }
+    }
 }

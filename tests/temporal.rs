@@ -1,0 +1,196 @@
+//! Temporal decomposition driven by synthetic solutions whose change in
+//! time is known, so that where the bisection must (and must not) split is
+//! known too; and interpolation in time.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use glam::Vec3;
+use rangewalk::accel::{self, Backend, Ray, RayEngine};
+use rangewalk::radiosity::temporal::{compare, decompose_with, Thresholds, TimeSeries};
+use rangewalk::radiosity::{IndirectSolution, Quality, Simplified, SolveStats};
+use rangewalk::scene::{Motion, Scene};
+
+fn cornell() -> Scene {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml");
+    Scene::load(&path).unwrap()
+}
+
+fn solution(time: f32, indirect: Vec<Vec3>) -> IndirectSolution {
+    IndirectSolution {
+        time,
+        direct: vec![Vec3::ZERO; indirect.len()],
+        indirect,
+        stats: SolveStats::default(),
+    }
+}
+
+/// Decomposes `scene` with irradiance `field(record, t)` standing in for
+/// the solver.
+fn run(scene: &Scene, q: f32, field: impl Fn(usize, f32) -> Vec3) -> TimeSeries {
+    let simplified = Simplified::whole(scene);
+    let mut engine = accel::build(Backend::Bvh, &scene.geometry(), &scene.at(0.0)).unwrap();
+    let solve = |_: &Scene, s: &Simplified, _: &dyn RayEngine, t: f32, _: Quality| {
+        Ok(solution(
+            t,
+            (0..s.records.len()).map(|i| field(i, t)).collect(),
+        ))
+    };
+    decompose_with(
+        scene,
+        &simplified,
+        engine.as_mut(),
+        Quality::new(q).unwrap(),
+        solve,
+    )
+    .unwrap()
+}
+
+#[test]
+fn static_scene_gets_one_solution() {
+    let mut scene = cornell();
+    for o in &mut scene.objects {
+        o.motion = Motion::default();
+    }
+    let series = run(&scene, 0.9, |i, t| Vec3::splat(i as f32 + t));
+    assert_eq!(series.times, vec![scene.animation.start]);
+    assert_eq!(series.stats.solves, 1);
+    assert!(series.stats.static_scene && series.stats.intervals.is_empty());
+    // Held at every time.
+    assert_eq!(series.indirect_at(0.7), series.solutions[0].indirect);
+}
+
+#[test]
+fn unchanging_light_needs_only_the_two_ends() {
+    let scene = cornell();
+    let series = run(&scene, 1.0, |i, _| Vec3::splat(1.0 + (i % 7) as f32));
+    assert_eq!(series.times, vec![0.0, 1.0]);
+    assert_eq!(series.stats.depth, 0);
+    assert!(!series.stats.intervals[0].split);
+}
+
+/// Light that jumps at t = 0.3 on a third of the records: bisection
+/// homes in on the jump and leaves the rest of the animation alone.
+#[test]
+fn bisection_refines_around_a_change_only() {
+    let scene = cornell();
+    let jump = 0.3;
+    let field = move |i: usize, t: f32| {
+        let base = Vec3::new(1.0, 0.8, 0.5);
+        if i % 3 == 0 && t > jump {
+            base * 4.0
+        } else {
+            base
+        }
+    };
+    let q = 0.9;
+    let series = run(&scene, q, field);
+    let limits = Thresholds::for_quality(Quality::new(q).unwrap());
+    assert_eq!(series.stats.depth, limits.max_depth);
+    assert_eq!(series.times.len(), series.stats.solves);
+    assert!(series.times.windows(2).all(|w| w[0] < w[1]));
+    // One split per level along the path to the jump: two ends plus one
+    // midpoint per level.
+    assert_eq!(series.stats.solves, 2 + limits.max_depth as usize);
+    let width = 1.0 / (1u32 << limits.max_depth) as f32;
+    let k = series.times.partition_point(|&t| t <= jump);
+    assert!((series.times[k] - series.times[k - 1] - width).abs() < 1e-6);
+    for test in &series.stats.intervals {
+        let contains = test.t0 < jump && jump < test.t1;
+        assert_eq!(
+            test.split,
+            contains && test.depth < limits.max_depth,
+            "{test:?}"
+        );
+    }
+}
+
+#[test]
+fn higher_quality_never_solves_fewer_times() {
+    let scene = cornell();
+    let field = |i: usize, t: f32| Vec3::splat(1.0 + (i % 5) as f32 * t * t);
+    let mut last = 0;
+    for q in [0.0, 0.3, 0.6, 0.9, 1.0] {
+        let n = run(&scene, q, field).stats.solves;
+        assert!(n >= last, "q = {q}: {n} solves after {last}");
+        last = n;
+    }
+    assert!(last > 2);
+}
+
+#[test]
+fn engine_is_posed_at_each_solve_time() {
+    let scene = cornell();
+    let simplified = Simplified::whole(&scene);
+    // A face of the moving short box (object 6) whose normal has a
+    // component along its motion.
+    let patch = *simplified
+        .patches
+        .iter()
+        .find(|p| p.object == 6 && p.normal().x.abs() > 0.5)
+        .unwrap();
+    let centre = (patch.vertices[0] + patch.vertices[1] + patch.vertices[2]) / 3.0;
+    let mut engine = accel::build(Backend::Bvh, &scene.geometry(), &scene.at(0.5)).unwrap();
+    let solve = |sc: &Scene, s: &Simplified, e: &dyn RayEngine, t: f32, _: Quality| -> Result<_> {
+        let pose = sc.at(t)[6];
+        let p = pose.transform_point3(centre);
+        let n = pose.transform_vector3(patch.normal()).normalize();
+        let hit = e.intersect(&Ray::new(p + n * 50.0, -n)).unwrap();
+        assert_eq!(hit.object, 6);
+        assert!((hit.t - 50.0).abs() < 1e-2, "t = {t}: hit at {}", hit.t);
+        Ok(solution(
+            t,
+            vec![Vec3::splat(1.0 + 10.0 * t); s.records.len()],
+        ))
+    };
+    let q = Quality::new(0.6).unwrap();
+    let series = decompose_with(&scene, &simplified, engine.as_mut(), q, solve).unwrap();
+    assert!(series.stats.solves > 2);
+}
+
+#[test]
+fn interpolation_is_linear_between_and_held_outside() {
+    let a = vec![Vec3::new(1.0, 2.0, 3.0), Vec3::ZERO];
+    let b = vec![Vec3::new(3.0, 2.0, 1.0), Vec3::splat(8.0)];
+    let c = vec![Vec3::splat(5.0), Vec3::splat(4.0)];
+    let series = TimeSeries {
+        times: vec![0.0, 1.0, 3.0],
+        solutions: vec![
+            solution(0.0, a.clone()),
+            solution(1.0, b.clone()),
+            solution(3.0, c.clone()),
+        ],
+        quality: 0.5,
+        stats: Default::default(),
+    };
+    assert_eq!(series.indirect_at(-2.0), a);
+    assert_eq!(series.indirect_at(f32::NAN), a);
+    assert_eq!(series.indirect_at(0.0), a);
+    assert_eq!(series.indirect_at(1.0), b);
+    assert_eq!(series.indirect_at(3.0), c);
+    assert_eq!(series.indirect_at(9.0), c);
+    let m = series.indirect_at(0.25);
+    assert!((m[0] - Vec3::new(1.5, 2.0, 2.5)).length() < 1e-6);
+    assert!((m[1] - Vec3::splat(2.0)).length() < 1e-6);
+    let m = series.indirect_at(2.0);
+    assert!((m[1] - Vec3::splat(6.0)).length() < 1e-6);
+}
+
+#[test]
+fn comparison_is_relative_and_safe_for_darkness() {
+    let a = vec![Vec3::ONE; 4];
+    let b = vec![Vec3::ONE, Vec3::ONE, Vec3::ONE, Vec3::splat(3.0)];
+    let (rms, unchanged) = compare(&a, &b, 0.1);
+    // Differences 0,0,0,2: RMS 1; mean of the averages 1.25.
+    assert!((rms - 1.0 / 1.25).abs() < 1e-9, "{rms}");
+    assert_eq!(unchanged, 0.75);
+    // Scaling both changes nothing.
+    let scale = |v: &[Vec3], s: f32| v.iter().map(|&x| x * s).collect::<Vec<_>>();
+    for s in [1e-6, 1e8] {
+        let (r, u) = compare(&scale(&a, s), &scale(&b, s), 0.1);
+        assert!((r - rms).abs() < 1e-5 * rms && u == unchanged);
+    }
+    let zero = vec![Vec3::ZERO; 4];
+    assert_eq!(compare(&zero, &zero, 0.1), (0.0, 1.0));
+    assert_eq!(compare(&[], &[], 0.1), (0.0, 1.0));
+}

@@ -194,3 +194,132 @@ fn comparison_is_relative_and_safe_for_darkness() {
     assert_eq!(compare(&zero, &zero, 0.1), (0.0, 1.0));
     assert_eq!(compare(&[], &[], 0.1), (0.0, 1.0));
 }
+
+/// The bake directory: exact round trips, atomic replacement, and errors
+/// that name the file and field at fault.
+mod bake {
+    use super::*;
+    use rangewalk::radiosity::bake::{self, load, partial_path, save};
+    use std::fs;
+    use std::path::Path;
+
+    fn baked(dir: &Path) -> (Simplified, TimeSeries) {
+        let scene = cornell();
+        let field = |i: usize, t: f32| {
+            Vec3::new(0.1 + i as f32 * 1e-3, 1e-7 * t, 3e4 + t.sin()) * (1.0 + t)
+        };
+        let mut series = run(&scene, 0.5, field);
+        series.solutions[0].direct[3] = Vec3::new(f32::MIN_POSITIVE, 1e30, 0.1);
+        series.solutions[0].stats.residual = 1.234_567_890_123e-9;
+        series.solutions[0].stats.shadow_rays = 1 << 40;
+        let mut s = Simplified::whole(&scene);
+        s.stats.seconds = 0.1 + 0.2;
+        s.stats.visibility_rays = 12345;
+        save(dir, &s, &series).unwrap();
+        (s, series)
+    }
+
+    #[test]
+    fn round_trip_is_bit_identical() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("cb.bake");
+        let (s, series) = baked(&dir);
+        assert!(series.stats.solves > 2 && !series.stats.intervals.is_empty());
+        let (s2, series2) = load(&dir).unwrap();
+        assert_eq!(s2, s);
+        assert_eq!(series2, series);
+        let bits = |v: &[Vec3]| {
+            v.iter()
+                .flat_map(|x| x.to_array().map(f32::to_bits))
+                .collect::<Vec<_>>()
+        };
+        for (a, b) in series.solutions.iter().zip(&series2.solutions) {
+            assert_eq!(bits(&a.indirect), bits(&b.indirect));
+            assert_eq!(a.stats.residual.to_bits(), b.stats.residual.to_bits());
+        }
+        assert!(!partial_path(&dir).exists());
+        // Saving again replaces the bake.
+        let mut other = series.clone();
+        other.solutions[1].indirect[0] = Vec3::splat(42.0);
+        save(&dir, &s, &other).unwrap();
+        assert_eq!(load(&dir).unwrap().1, other);
+    }
+
+    #[test]
+    fn refuses_to_replace_a_directory_that_is_not_a_bake() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("mine");
+        fs::create_dir(&dir).unwrap();
+        fs::write(dir.join("notes.txt"), "keep me").unwrap();
+        let scene = cornell();
+        let series = run(&scene, 0.0, |_, _| Vec3::ONE);
+        let e = save(&dir, &Simplified::whole(&scene), &series).unwrap_err();
+        assert!(format!("{e:#}").contains("not a bake directory"), "{e:#}");
+        assert!(dir.join("notes.txt").exists());
+    }
+
+    #[test]
+    fn unfinished_bake_is_not_taken_for_a_finished_one() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("cb.bake");
+        baked(&dir);
+        fs::rename(&dir, partial_path(&dir)).unwrap();
+        let e = format!("{:#}", load(&dir).unwrap_err());
+        assert!(e.contains("never finished"), "{e}");
+    }
+
+    fn expect_error(dir: &Path, file: &str, fragments: &[&str]) {
+        let e = format!("{:#}", load(dir).unwrap_err());
+        assert!(e.contains(file), "error does not name {file}: {e}");
+        for f in fragments {
+            assert!(e.contains(f), "error lacks `{f}`: {e}");
+        }
+    }
+
+    #[test]
+    fn damaged_files_give_errors_naming_file_and_field() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("cb.bake");
+        baked(&dir);
+        let manifest = dir.join(bake::MANIFEST);
+        let original = fs::read_to_string(&manifest).unwrap();
+
+        // Truncated binary file.
+        let irr = dir.join("irradiance.bin");
+        let bytes = fs::read(&irr).unwrap();
+        fs::write(&irr, &bytes[..bytes.len() - 5]).unwrap();
+        expect_error(&dir, "irradiance.bin", &["truncated", "files.irradiance"]);
+
+        // One flipped bit.
+        let mut flipped = bytes.clone();
+        flipped[100] ^= 0x10;
+        fs::write(&irr, &flipped).unwrap();
+        expect_error(&dir, "irradiance.bin", &["corrupt", "fnv1a64"]);
+        fs::write(&irr, &bytes).unwrap();
+        load(&dir).unwrap();
+
+        // Wrong version.
+        let v = original.replace("version = 1", "version = 99");
+        assert_ne!(v, original);
+        fs::write(&manifest, v).unwrap();
+        expect_error(&dir, "manifest.toml", &["version", "99"]);
+
+        // A missing field.
+        let cut: String = original
+            .lines()
+            .filter(|l| !l.starts_with("quality"))
+            .collect::<Vec<_>>()
+            .join("\n");
+        fs::write(&manifest, cut).unwrap();
+        expect_error(&dir, "manifest.toml", &["quality"]);
+
+        // Not TOML at all.
+        fs::write(&manifest, "\u{0}\u{1}garbage").unwrap();
+        expect_error(&dir, "manifest.toml", &[]);
+
+        // Missing binary file.
+        fs::write(&manifest, &original).unwrap();
+        fs::remove_file(dir.join("records.bin")).unwrap();
+        expect_error(&dir, "records.bin", &[]);
+    }
+}

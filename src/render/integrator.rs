@@ -32,7 +32,7 @@ pub struct Integrator<'a> {
 
 /// Power heuristic weight of a strategy with density `a` against one with `b`,
 /// written to stay finite for huge densities.
-fn power_heuristic(a: f32, b: f32) -> f32 {
+pub(super) fn power_heuristic(a: f32, b: f32) -> f32 {
     if a <= 0.0 || a.is_nan() {
         return 0.0;
     }

@@ -14,7 +14,7 @@ use glam::{DVec3, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
-use crate::accel::RayEngine;
+use crate::accel::{Ray, RayEngine};
 use crate::camera::Camera;
 use crate::image::{RangeImage, RangeMeta};
 use crate::scene::Scene;
@@ -102,7 +102,32 @@ pub fn render(
     };
     let mut image = RangeImage::empty(meta);
     let mut rays = first_hits(engine, camera, &mut image);
+    rays += shade_tiles(camera, settings, &mut image, &|ray, _, rng, rays| {
+        integrator.radiance(ray, rng, rays)
+    });
+    let (w, h) = (camera.width, camera.height);
+    let stats = RenderStats {
+        seconds: start.elapsed().as_secs_f64(),
+        samples: w as u64 * h as u64 * settings.spp as u64,
+        rays,
+    };
+    Ok((image, stats))
+}
 
+/// Estimates one radiance sample along a camera ray, given the sample's
+/// index within its pixel (for stratification); the last argument counts
+/// the rays traced.
+type Shade<'a> = dyn Fn(Ray, u32, &mut Pcg32, &mut u64) -> Vec3 + Sync + 'a;
+
+/// Shades every pixel sample of `camera`'s view in tiles handed out by
+/// rayon, with progress, writing mean radiances into `image`; returns the
+/// number of rays traced.
+fn shade_tiles(
+    camera: &Camera,
+    settings: &RenderSettings,
+    image: &mut RangeImage,
+    shade: &Shade,
+) -> u64 {
     let (w, h) = (camera.width, camera.height);
     let tiles: Vec<(u32, u32)> = (0..h.div_ceil(TILE))
         .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
@@ -114,13 +139,14 @@ pub fn render(
     let results: Vec<TileResult> = tiles
         .par_iter()
         .map(|&(x0, y0)| {
-            let r = render_tile(&integrator, camera, settings, x0, y0);
+            let r = render_tile(shade, camera, settings, x0, y0);
             progress.inc(1);
             r
         })
         .collect();
     progress.finish_and_clear();
 
+    let mut rays = 0;
     for t in results {
         rays += t.rays;
         for (k, &c) in t.radiance.iter().enumerate() {
@@ -128,16 +154,11 @@ pub fn render(
             image.radiance[(y * w + x) as usize] = c;
         }
     }
-    let stats = RenderStats {
-        seconds: start.elapsed().as_secs_f64(),
-        samples: w as u64 * h as u64 * settings.spp as u64,
-        rays,
-    };
-    Ok((image, stats))
+    rays
 }
 
 fn render_tile(
-    integrator: &Integrator,
+    shade: &Shade,
     camera: &Camera,
     settings: &RenderSettings,
     x0: u32,
@@ -157,7 +178,7 @@ fn render_tile(
                 let Some(ray) = camera.ray(x as f32 + dx, y as f32 + dy) else {
                     continue;
                 };
-                let l = integrator.radiance(ray, &mut rng, &mut rays);
+                let l = shade(ray, s, &mut rng, &mut rays);
                 debug_assert!(l.is_finite(), "pixel ({x}, {y}) sample {s}: radiance {l}");
                 if l.is_finite() {
                     sum += l.as_dvec3();

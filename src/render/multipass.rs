@@ -1,15 +1,48 @@
 //! The multipass renderer (paper §4.4): direct light ray traced, specular
 //! and glossy reflection traced, diffuse indirect light looked up from the
 //! radiosity records instead of traced.
+//!
+//! At every surface a path reaches (the camera's first hit and the hits of
+//! traced specular chains) the estimate is
+//!
+//! * emission, where an emitter is seen directly or through a mirror, or
+//!   reached by a glossy sample (weighted against light sampling by the
+//!   power heuristic);
+//! * direct light by next-event estimation: one light sample per hit,
+//!   stratified over the pixel's samples at the first hit. The diffuse
+//!   part takes it with weight one; the glossy part shares it with the
+//!   sampled glossy ray by multiple importance sampling;
+//! * diffuse indirect light `ρ/π · E`, with `E` the records' irradiance at
+//!   the hit's object-space point and normal (`IrradianceCache`);
+//! * a traced reflection: mirrors exactly, glossy lobes by sampling their
+//!   specular part only (their diffuse part is covered by the records).
+//!
+//! Path length is counted in segments as the path tracer counts it (see
+//! `RenderSettings::max_depth`): direct light at a hit needs one segment
+//! more, looked-up indirect light two. Without a bound, chains of specular
+//! bounces stop after [`UNBOUNDED_DEPTH`] segments. A scene without glossy
+//! or mirror surfaces traces camera and shadow rays only.
 
-use anyhow::Result;
+use std::f32::consts::FRAC_1_PI;
+use std::time::Instant;
 
-use super::{RenderSettings, RenderStats};
-use crate::accel::RayEngine;
+use anyhow::{ensure, Result};
+use glam::{Affine3A, Vec2, Vec3};
+
+use super::bsdf::{Frame, Lobes};
+use super::integrator::power_heuristic;
+use super::lights::Lights;
+use super::rng::Pcg32;
+use super::{first_hits, shade_tiles, RenderSettings, RenderStats};
+use crate::accel::{offset_origin, Ray, RayEngine};
 use crate::camera::Camera;
-use crate::image::RangeImage;
+use crate::image::{RangeImage, RangeMeta};
 use crate::radiosity::lookup::IrradianceCache;
 use crate::scene::Scene;
+
+/// Longest path (in segments) when `RenderSettings::max_depth` is `None`:
+/// a chain of mirrors facing each other must still end.
+pub const UNBOUNDED_DEPTH: u32 = 16;
 
 /// Renders `camera`'s view at `time`; `engine` holds the scene posed at
 /// `time` and `indirect` the records interpolated to `time`.
@@ -22,6 +55,249 @@ pub fn render(
     settings: &RenderSettings,
     indirect: &IrradianceCache,
 ) -> Result<(RangeImage, RenderStats)> {
-    let _ = (scene, engine, camera, time, settings, indirect);
-    todo!("multipass renderer")
+    ensure!(settings.spp > 0, "multipass render: spp must be at least 1");
+    ensure!(
+        scene.objects.len() < u32::MAX as usize,
+        "multipass render: too many objects"
+    );
+    let start = Instant::now();
+    let shader = Multipass {
+        scene,
+        engine,
+        lights: Lights::new(scene, time),
+        poses: scene.at(time),
+        cache: indirect,
+        max_depth: settings.max_depth.unwrap_or(UNBOUNDED_DEPTH),
+        strata: (settings.spp as f32).sqrt().floor() as u32,
+    };
+    let meta = RangeMeta {
+        camera: *camera,
+        time,
+        scene: format!(
+            "{} t={time} multipass ({}) spp={} max_depth={} seed={}",
+            scene.source.display(),
+            engine.name(),
+            settings.spp,
+            shader.max_depth,
+            settings.seed
+        ),
+    };
+    let mut image = RangeImage::empty(meta);
+    let mut rays = first_hits(engine, camera, &mut image);
+    rays += shade_tiles(camera, settings, &mut image, &|ray, s, rng, rays| {
+        shader.radiance(ray, s, rng, rays)
+    });
+    let stats = RenderStats {
+        seconds: start.elapsed().as_secs_f64(),
+        samples: camera.width as u64 * camera.height as u64 * settings.spp as u64,
+        rays,
+    };
+    Ok((image, stats))
+}
+
+struct Multipass<'a> {
+    scene: &'a Scene,
+    engine: &'a dyn RayEngine,
+    lights: Lights,
+    poses: Vec<Affine3A>,
+    cache: &'a IrradianceCache,
+    max_depth: u32,
+    /// Light samples at the first hit are stratified on a
+    /// `strata x strata` grid over the pixel's samples.
+    strata: u32,
+}
+
+/// How the ray that reached a surface was chosen, for weighting the
+/// emission it finds there.
+#[derive(Clone, Copy)]
+enum Came {
+    /// Camera ray or mirror: no other strategy could have found it.
+    Only,
+    /// Sampled from a glossy lobe with this density, at this point.
+    Glossy { pdf: f32, from: Vec3 },
+}
+
+impl Multipass<'_> {
+    fn radiance(&self, mut ray: Ray, sample: u32, rng: &mut Pcg32, rays: &mut u64) -> Vec3 {
+        let mut l = Vec3::ZERO;
+        let mut beta = Vec3::ONE;
+        let mut came = Came::Only;
+        let mut segments = 1u32;
+        if self.max_depth == 0 {
+            return l;
+        }
+        loop {
+            *rays += 1;
+            let Some(hit) = self.engine.intersect(&ray) else {
+                if let Some((le, pdf_light)) = self.lights.sun_along(ray.dir.normalize()) {
+                    let w = match came {
+                        Came::Only => 1.0,
+                        Came::Glossy { pdf, .. } => power_heuristic(pdf, pdf_light),
+                    };
+                    l += beta * le * w;
+                }
+                break;
+            };
+            let object = &self.scene.objects[hit.object as usize];
+            let [ia, ib, ic] = object.mesh.triangles[hit.primitive as usize];
+            let pos = &object.mesh.positions;
+            let (a, b, c) = (pos[ia as usize], pos[ib as usize], pos[ic as usize]);
+            let local = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+            let p = self.poses[hit.object as usize].transform_point3(local);
+            let ng = hit.normal;
+            let wo = -ray.dir.normalize();
+            let cos_o = ng.dot(wo);
+            if !(p.is_finite() && ng.is_finite() && cos_o.is_finite()) || cos_o == 0.0 {
+                break;
+            }
+            let material = &self.scene.materials[object.material];
+            if let Some(em) = material.emission {
+                if em.two_sided || cos_o > 0.0 {
+                    let w = match came {
+                        Came::Only => 1.0,
+                        Came::Glossy { pdf, from } => {
+                            let pl = self.lights.triangle_pdf(hit.object, hit.primitive, from, p);
+                            power_heuristic(pdf, pl)
+                        }
+                    };
+                    l += beta * em.radiance * w;
+                }
+            }
+            if segments >= self.max_depth {
+                break;
+            }
+            let n = if cos_o > 0.0 { ng } else { -ng };
+            let frame = Frame::new(n);
+            let wo_l = frame.to_local(wo);
+            let uv = object.mesh.uvs.as_ref().map(|uvs| {
+                let w0 = 1.0 - hit.u - hit.v;
+                uvs[ia as usize] * w0 + uvs[ib as usize] * hit.u + uvs[ic as usize] * hit.v
+            });
+            let lobes = Lobes::at(&material.bsdf, uv.filter(|uv: &Vec2| uv.is_finite()));
+            let (diffuse, specular) = split(lobes);
+
+            let lit = diffuse.is_some() || specular.is_some_and(|s| !s.is_delta());
+            if lit && !self.lights.is_empty() {
+                let u = self.light_numbers(segments, sample, rng);
+                l += beta * self.direct(p, ng, frame, wo_l, diffuse, specular, u, rays);
+            }
+            if let Some(Lobes::Diffuse { albedo }) = diffuse {
+                if segments + 2 <= self.max_depth && albedo != Vec3::ZERO {
+                    // The object-space normal by winding, turned like `n`.
+                    let nl = (b - a).cross(c - a).normalize_or_zero();
+                    let nl = if cos_o > 0.0 { nl } else { -nl };
+                    let e = self.cache.irradiance(hit.object, local, nl);
+                    l += beta * albedo * FRAC_1_PI * e;
+                }
+            }
+
+            // Continue along the specular or glossy reflection, if any.
+            let Some(spec) = specular else { break };
+            let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+            let Some(s) = spec.sample(wo_l, u) else { break };
+            beta *= s.weight;
+            if beta == Vec3::ZERO || !beta.is_finite() {
+                break;
+            }
+            came = if s.delta {
+                Came::Only
+            } else {
+                Came::Glossy {
+                    pdf: s.pdf,
+                    from: p,
+                }
+            };
+            segments += 1;
+            let wi = frame.to_world(s.wi);
+            ray = Ray::new(offset_origin(p, ng, wi), wi);
+        }
+        l
+    }
+
+    /// Uniform numbers for a light sample; at the camera's first hit the
+    /// point on the light is stratified over the pixel's samples.
+    fn light_numbers(&self, segments: u32, sample: u32, rng: &mut Pcg32) -> (f64, f32, f32) {
+        let (u, mut u1, mut u2) = (rng.next_f64(), rng.next_f32(), rng.next_f32());
+        let n = self.strata;
+        if segments == 1 && n > 1 && sample < n * n {
+            let inv = 1.0 / n as f32;
+            u1 = ((sample % n) as f32 + u1) * inv;
+            u2 = ((sample / n) as f32 + u2) * inv;
+            // Stay below one where rounding would reach it.
+            u1 = u1.min(1.0 - f32::EPSILON);
+            u2 = u2.min(1.0 - f32::EPSILON);
+        }
+        (u, u1, u2)
+    }
+
+    /// Direct light by one light sample: the diffuse lobe with weight one,
+    /// the glossy lobe weighted against its own sampling.
+    #[allow(clippy::too_many_arguments)]
+    fn direct(
+        &self,
+        p: Vec3,
+        ng: Vec3,
+        frame: Frame,
+        wo_l: Vec3,
+        diffuse: Option<Lobes>,
+        specular: Option<Lobes>,
+        (u, u1, u2): (f64, f32, f32),
+        rays: &mut u64,
+    ) -> Vec3 {
+        let Some(ls) = self.lights.sample(p, ng, u, u1, u2) else {
+            return Vec3::ZERO;
+        };
+        let wi_l = frame.to_local(ls.wi);
+        if wi_l.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let mut f = diffuse.map_or(Vec3::ZERO, |d| d.eval(wo_l, wi_l));
+        if let Some(s) = specular.filter(|s| !s.is_delta()) {
+            let w = if ls.delta {
+                1.0
+            } else {
+                power_heuristic(ls.pdf, s.pdf(wo_l, wi_l))
+            };
+            f += s.eval(wo_l, wi_l) * w;
+        }
+        if f == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        *rays += 1;
+        if self.engine.occluded(&ls.shadow) {
+            return Vec3::ZERO;
+        }
+        let c = f * ls.radiance * (wi_l.z / ls.pdf);
+        if c.is_finite() {
+            c
+        } else {
+            Vec3::ZERO
+        }
+    }
+}
+
+/// The diffuse part (lit by light samples and the records) and the
+/// specular part (traced) of a reflection model.
+fn split(lobes: Lobes) -> (Option<Lobes>, Option<Lobes>) {
+    match lobes {
+        Lobes::Diffuse { albedo } => (Some(Lobes::Diffuse { albedo }), None),
+        Lobes::Glossy {
+            diffuse,
+            specular,
+            alpha,
+            model,
+        } => (
+            (diffuse != Vec3::ZERO).then_some(Lobes::Diffuse { albedo: diffuse }),
+            (specular != Vec3::ZERO).then_some(Lobes::Glossy {
+                diffuse: Vec3::ZERO,
+                specular,
+                alpha,
+                model,
+            }),
+        ),
+        Lobes::Mirror { reflectance } => (
+            None,
+            (reflectance != Vec3::ZERO).then_some(Lobes::Mirror { reflectance }),
+        ),
+    }
 }

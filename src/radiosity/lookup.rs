@@ -16,10 +16,9 @@
 //! Records facing more than 30° away from `n`, or lying off the tangent
 //! plane by more than half their radius, are not used: light does not leak
 //! round a crease nor between stacked surfaces. Each record contributes its
-//! value extrapolated by its gradient, clamped to the range of the values
-//! it was fitted to widened by that range on either side (and to zero): a
-//! linear field on a plane is reproduced exactly, and a gradient fitted
-//! across a shadow edge cannot overshoot without bound.
+//! value extrapolated by its gradient, so a linear field on a plane is
+//! reproduced exactly; a record whose extrapolation turns negative (a
+//! gradient fitted across a shadow edge) is left out, as Radiance does.
 //!
 //! Where no record is in range, the nearest records facing the same way
 //! are blended by `1/e_i`; an object without records (pruned by the
@@ -56,10 +55,6 @@ struct Entry {
     value: Vec3,
     /// `d E_c / d p` for each colour channel `c`, in the tangent plane.
     gradient: [Vec3; 3],
-    /// Bounds of the extrapolated value: the range of the values the
-    /// gradient was fitted to, widened by that range on either side.
-    lo: Vec3,
-    hi: Vec3,
     radius: f32,
 }
 
@@ -121,16 +116,12 @@ impl IrradianceCache {
             .map(|i| {
                 let r = &simplified.records[i];
                 let normal = r.normal.normalize_or_zero();
-                let (gradient, lo, hi) =
-                    fit_gradient(i, &simplified.records, &neighbours[i], value);
-                let span = hi - lo;
+                let gradient = fit_gradient(i, &simplified.records, &neighbours[i], value);
                 Entry {
                     position: r.position,
                     normal,
                     value: value(i),
                     gradient,
-                    lo: (lo - span).max(Vec3::ZERO),
-                    hi: hi + span,
                     radius: radius[i],
                 }
             })
@@ -169,11 +160,14 @@ impl IrradianceCache {
                 if e >= ACCEPT {
                     continue;
                 }
+                let Some(v) = self.extrapolate(i, p) else {
+                    continue;
+                };
                 if e <= 1e-6 {
-                    return self.extrapolate(i, p);
+                    return v;
                 }
                 let w = 1.0 / e - 1.0 / ACCEPT;
-                sum += self.extrapolate(i, p) * w;
+                sum += v * w;
                 wsum += w;
             }
         }
@@ -203,28 +197,31 @@ impl IrradianceCache {
         e.is_finite().then_some(e)
     }
 
-    fn extrapolate(&self, i: usize, p: Vec3) -> Vec3 {
+    /// Record `i`'s value carried to `p` by its gradient; `None` where
+    /// that turns negative.
+    fn extrapolate(&self, i: usize, p: Vec3) -> Option<Vec3> {
         let r = &self.records[i];
         let d = p - r.position;
-        let v = r.value
-            + Vec3::new(
-                r.gradient[0].dot(d),
-                r.gradient[1].dot(d),
-                r.gradient[2].dot(d),
-            );
-        if v.is_finite() {
-            v.clamp(r.lo, r.hi)
+        let g = Vec3::new(
+            r.gradient[0].dot(d),
+            r.gradient[1].dot(d),
+            r.gradient[2].dot(d),
+        );
+        let v = r.value + g;
+        if !v.is_finite() {
+            Some(r.value)
         } else {
-            r.value
+            (v.min_element() >= 0.0).then_some(v)
         }
     }
 
-    /// Where no record is in range: the nearest ones facing the same
-    /// hemisphere, by `1/e`; else the scene average.
+    /// Where no record is in range: the range widened until the nearest
+    /// record facing the same hemisphere enters it (Ward weights with
+    /// every `e_i` divided by the smallest); else the scene average.
     fn nearest(&self, levels: &[Level], p: Vec3, n: Vec3) -> Vec3 {
         let q = p.to_array();
         let k = NonZero::new(FALLBACK_NEAREST).expect("nonzero");
-        let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
+        let mut found: Vec<(f32, usize)> = Vec::new();
         for level in levels {
             for nb in level.tree.nearest_n::<SquaredEuclidean>(&q, k) {
                 let i = level.ids[nb.item as usize] as usize;
@@ -235,11 +232,23 @@ impl IrradianceCache {
                 }
                 let e = (p - r.position).length() / r.radius.max(f32::MIN_POSITIVE)
                     + (1.0 - cos).max(0.0).sqrt();
-                let w = 1.0 / e.max(1e-6);
-                if w.is_finite() {
-                    sum += r.value * w;
-                    wsum += w;
+                if e.is_finite() {
+                    found.push((e, i));
                 }
+            }
+        }
+        let Some(&(e_min, closest)) = found.iter().min_by(|a, b| a.0.total_cmp(&b.0)) else {
+            return self.average;
+        };
+        if e_min <= 0.0 {
+            return self.records[closest].value;
+        }
+        let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
+        for (e, i) in found {
+            let w = e_min / e - 1.0 / ACCEPT;
+            if w > 0.0 {
+                sum += self.records[i].value * w;
+                wsum += w;
             }
         }
         let v = sum / wsum;
@@ -258,21 +267,19 @@ impl IrradianceCache {
 }
 
 /// Least-squares gradient of record `i`'s value over its neighbours on
-/// the same face, in the record's tangent plane; with the range of the
-/// values used. Fewer than two independent neighbours: no gradient.
+/// the same face, in the record's tangent plane. Fewer than two
+/// independent neighbours: no gradient.
 fn fit_gradient(
     i: usize,
     records: &[super::RecordPoint],
     neighbours: &[u32],
     value: impl Fn(usize) -> Vec3,
-) -> ([Vec3; 3], Vec3, Vec3) {
+) -> [Vec3; 3] {
     let r = &records[i];
     let n = r.normal.normalize_or_zero();
     let v0 = value(i);
-    let (mut lo, mut hi) = (v0, v0);
-    let zero = ([Vec3::ZERO; 3], v0, v0);
     if n == Vec3::ZERO || !n.is_finite() {
-        return zero;
+        return [Vec3::ZERO; 3];
     }
     let frame = crate::render::bsdf::Frame::new(n);
     // Normal equations of the 2D fit, accumulated in f64.
@@ -297,14 +304,12 @@ fn fit_gradient(
         syy += y * y;
         bx += dv * x;
         by += dv * y;
-        lo = lo.min(value(j));
-        hi = hi.max(value(j));
         used += 1;
     }
     let det = sxx * syy - sxy * sxy;
     // Collinear neighbours leave the gradient across them undetermined.
     if used < 2 || !(det > 1e-9 * (sxx + syy) * (sxx + syy)) {
-        return ([Vec3::ZERO; 3], lo, hi);
+        return [Vec3::ZERO; 3];
     }
     let gx = (bx * syy - by * sxy) / det;
     let gy = (by * sxx - bx * sxy) / det;
@@ -316,7 +321,7 @@ fn fit_gradient(
             Vec3::ZERO
         }
     };
-    ([g(0), g(1), g(2)], lo, hi)
+    [g(0), g(1), g(2)]
 }
 
 /// Groups each object's records by radius, one tree per power of two.

@@ -1,0 +1,447 @@
+//! The irradiance cache's interpolation truths and the multipass renderer
+//! against the path tracer; `with_solver` checks radiosity indirect light
+//! against path-traced indirect light.
+
+use std::path::PathBuf;
+
+use glam::Vec3;
+use rangewalk::accel::{self, Backend};
+use rangewalk::camera::Camera;
+use rangewalk::image::{RangeImage, NO_HIT};
+use rangewalk::radiosity::lookup::IrradianceCache;
+use rangewalk::radiosity::{diffuse_albedo, Patch, RecordPoint, Simplified};
+use rangewalk::render::{self, multipass, RenderSettings, RenderStats};
+use rangewalk::scene::{Light, Scene};
+
+fn load(name: &str) -> Scene {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
+        .join("scene.toml");
+    Scene::load(&path).unwrap_or_else(|e| panic!("{e:#}"))
+}
+
+fn settings(spp: u32, max_depth: Option<u32>, seed: u64) -> RenderSettings {
+    RenderSettings {
+        spp,
+        max_depth,
+        seed,
+    }
+}
+
+fn camera(scene: &Scene, size: u32) -> Camera {
+    scene
+        .camera("main")
+        .unwrap()
+        .perspective(size, size)
+        .unwrap()
+}
+
+fn path_trace(scene: &Scene, cam: &Camera, t: f32, s: RenderSettings) -> RangeImage {
+    let engine = accel::build(Backend::Bvh, &scene.geometry(), &scene.at(t)).unwrap();
+    render::render(scene, engine.as_ref(), cam, t, &s)
+        .unwrap()
+        .0
+}
+
+fn multipass(
+    scene: &Scene,
+    cam: &Camera,
+    t: f32,
+    s: RenderSettings,
+    cache: &IrradianceCache,
+) -> (RangeImage, RenderStats) {
+    let engine = accel::build(Backend::Bvh, &scene.geometry(), &scene.at(t)).unwrap();
+    multipass::render(scene, engine.as_ref(), cam, t, &s, cache).unwrap()
+}
+
+fn uniform_cache(scene: &Scene, e: Vec3) -> (Simplified, IrradianceCache) {
+    let s = Simplified::whole(scene);
+    let cache = IrradianceCache::new(&s, &vec![e; s.records.len()]);
+    (s, cache)
+}
+
+fn mean(img: &RangeImage) -> Vec3 {
+    img.radiance.iter().sum::<Vec3>() / img.len() as f32
+}
+
+fn luminance(v: Vec3) -> f64 {
+    0.2126 * v.x as f64 + 0.7152 * v.y as f64 + 0.0722 * v.z as f64
+}
+
+/// RMS of the luminance difference over the mean reference luminance.
+fn relative_lrms(test: &[Vec3], reference: &[Vec3]) -> f64 {
+    let n = reference.len() as f64;
+    let sq: f64 = test
+        .iter()
+        .zip(reference)
+        .map(|(&a, &b)| (luminance(a) - luminance(b)).powi(2))
+        .sum();
+    let m: f64 = reference.iter().map(|&b| luminance(b)).sum::<f64>() / n;
+    (sq / n).sqrt() / m
+}
+
+mod lookup {
+    use super::*;
+
+    /// A square grid of `n x n` cells of side `h` in the plane z = 0 of
+    /// object 0, records at the grid points with `value(position)`.
+    fn grid(n: usize, h: f32, value: impl Fn(Vec3) -> Vec3) -> (Simplified, Vec<Vec3>) {
+        let mut records = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                records.push(RecordPoint {
+                    object: 0,
+                    position: Vec3::new(i as f32 * h, j as f32 * h, 0.0),
+                    normal: Vec3::Z,
+                });
+            }
+        }
+        let id = |i: usize, j: usize| (j * (n + 1) + i) as u32;
+        let mut patches = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                for c in [
+                    [id(i, j), id(i + 1, j), id(i + 1, j + 1)],
+                    [id(i, j), id(i + 1, j + 1), id(i, j + 1)],
+                ] {
+                    patches.push(Patch {
+                        object: 0,
+                        vertices: c.map(|k| records[k as usize].position),
+                        corners: c,
+                        reflectance: Vec3::splat(0.5),
+                        emission: Vec3::ZERO,
+                        two_sided: false,
+                    });
+                }
+            }
+        }
+        let values = records.iter().map(|r| value(r.position)).collect();
+        let s = Simplified {
+            patches,
+            records,
+            stats: Default::default(),
+        };
+        (s, values)
+    }
+
+    /// Deterministic points in `[0, 1)²`.
+    fn points(n: usize) -> impl Iterator<Item = (f32, f32)> {
+        (0..n).map(|k| {
+            let x = (k as f32 * 0.618_034).fract();
+            let y = (k as f32 * 0.754_877 + 0.1).fract();
+            (x, y)
+        })
+    }
+
+    #[test]
+    fn record_points_give_their_own_values_exactly() {
+        let (s, values) = grid(6, 0.5, |p| {
+            Vec3::new((p.x * 7.0).sin().abs(), p.y * p.y, 1e3 + p.x)
+        });
+        let cache = IrradianceCache::new(&s, &values);
+        for (r, &v) in s.records.iter().zip(&values) {
+            assert_eq!(cache.irradiance(0, r.position, r.normal), v);
+        }
+    }
+
+    #[test]
+    fn linear_field_on_a_plane_is_reproduced() {
+        for scale in [1.0f32, 1e4, 1e-4] {
+            let f = |p: Vec3| {
+                let q = p / scale;
+                Vec3::new(2.0 + q.x, 1.0 + 0.5 * q.y, 3.0 + 0.2 * q.x - 0.3 * q.y)
+            };
+            let (s, values) = grid(5, 0.8 * scale, f);
+            let cache = IrradianceCache::new(&s, &values);
+            for (x, y) in points(200) {
+                let p = Vec3::new(x * 4.0 * scale, y * 4.0 * scale, 0.0);
+                let got = cache.irradiance(0, p, Vec3::Z);
+                let want = f(p);
+                assert!(
+                    ((got - want) / want).abs().max_element() < 1e-4,
+                    "scale {scale}, at {p}: {got}, expected {want}"
+                );
+            }
+        }
+    }
+
+    /// An L of a floor (normal +z) and a wall (normal +x) meeting at
+    /// x = 0: points on the floor next to the crease see floor records only.
+    #[test]
+    fn no_light_leaks_across_a_crease() {
+        let (mut s, mut values) = grid(4, 0.25, |_| Vec3::ONE);
+        let floor = s.records.len();
+        let wall: Vec<RecordPoint> = s
+            .records
+            .iter()
+            .map(|r| RecordPoint {
+                object: 0,
+                position: Vec3::new(0.0, r.position.y, r.position.x),
+                normal: Vec3::X,
+            })
+            .collect();
+        let wall_patches: Vec<Patch> = s
+            .patches
+            .iter()
+            .map(|p| Patch {
+                vertices: p.vertices.map(|v| Vec3::new(0.0, v.y, v.x)),
+                corners: p.corners.map(|c| c + floor as u32),
+                ..*p
+            })
+            .collect();
+        s.records.extend(wall);
+        s.patches.extend(wall_patches);
+        values.extend(vec![Vec3::splat(100.0); floor]);
+        let cache = IrradianceCache::new(&s, &values);
+        for (x, y) in points(100) {
+            let on_floor = cache.irradiance(0, Vec3::new(0.05 * x, y, 0.0), Vec3::Z);
+            let near = |a: Vec3, b: Vec3| ((a - b) / b).abs().max_element() < 1e-6;
+            assert!(
+                near(on_floor, Vec3::ONE),
+                "floor at x = {}: {on_floor}",
+                0.05 * x
+            );
+            let on_wall = cache.irradiance(0, Vec3::new(0.0, y, 0.05 * x), Vec3::X);
+            assert!(near(on_wall, Vec3::splat(100.0)), "{on_wall}");
+        }
+        // A normal half way between the faces is 45° from both: neither
+        // face's records apply, and the nearest-record fallback gives a
+        // value between them.
+        let mid = cache.irradiance(0, Vec3::ZERO, Vec3::new(1.0, 0.0, 1.0).normalize());
+        assert!(
+            mid.min_element() >= 1.0 && mid.max_element() <= 100.0,
+            "{mid}"
+        );
+    }
+
+    #[test]
+    fn missing_records_fall_back_to_the_scene_average() {
+        let (s, values) = grid(2, 1.0, |p| Vec3::splat(1.0 + p.x));
+        let cache = IrradianceCache::new(&s, &values);
+        // Area-weighted mean of a linear field over the square: its centre.
+        assert!((cache.average() - Vec3::splat(2.0)).length() < 1e-5);
+        assert_eq!(cache.irradiance(7, Vec3::ZERO, Vec3::Z), cache.average());
+        // Facing away from every record.
+        assert_eq!(cache.irradiance(0, Vec3::ONE, -Vec3::Z), cache.average());
+        // Out of every record's range on the plane: the nearest records
+        // (value 3 at x = 2), not the average.
+        let far = cache.irradiance(0, Vec3::new(4.5, 1.0, 0.0), Vec3::Z);
+        assert!(far.x > 2.8 && far.x <= 3.0, "{far}");
+    }
+
+    #[test]
+    fn degenerate_inputs_give_finite_values() {
+        let (mut s, mut values) = grid(2, 1.0, |_| Vec3::ONE);
+        s.records[0].normal = Vec3::ZERO;
+        s.records[1].position = Vec3::NAN;
+        s.patches[0].vertices = [Vec3::ZERO; 3];
+        values[2] = Vec3::INFINITY;
+        values[3] = Vec3::splat(f32::NAN);
+        values[4] = Vec3::splat(-1.0);
+        let cache = IrradianceCache::new(&s, &values);
+        for p in [Vec3::ZERO, Vec3::ONE, Vec3::NAN, Vec3::splat(1e30), Vec3::X] {
+            for n in [Vec3::Z, Vec3::ZERO, Vec3::NAN, -Vec3::Z, Vec3::splat(1e-30)] {
+                for object in [0, 1, u32::MAX] {
+                    let e = cache.irradiance(object, p, n);
+                    assert!(e.is_finite() && e.min_element() >= 0.0, "{p} {n}: {e}");
+                }
+            }
+        }
+        let empty = IrradianceCache::new(&Simplified::default(), &[]);
+        assert_eq!(empty.irradiance(0, Vec3::ZERO, Vec3::Z), Vec3::ZERO);
+        // More values than records, or fewer: no panic.
+        let short = IrradianceCache::new(&s, &values[..3]);
+        assert!(short.irradiance(0, Vec3::ONE, Vec3::Z).is_finite());
+    }
+}
+
+/// With nothing in the cache, multipass is direct light only: the path
+/// tracer's `max_depth = 2` image, within noise.
+#[test]
+fn zero_cache_equals_direct_only_path_tracing() {
+    for (name, t) in [("cornell-box", 0.5), ("glossy-sun", 1.0)] {
+        let scene = load(name);
+        let cam = camera(&scene, 24);
+        let (_, cache) = uniform_cache(&scene, Vec3::ZERO);
+        let reference = path_trace(&scene, &cam, t, settings(64, Some(2), 1));
+        let (img, _) = multipass(&scene, &cam, t, settings(64, Some(2), 2), &cache);
+        let (a, b) = (mean(&img), mean(&reference));
+        assert!(
+            ((a - b) / b).abs().max_element() < 0.03,
+            "{name}: multipass mean {a}, path tracer {b}"
+        );
+        // Per pixel: no further from the path tracer than another run of
+        // the path tracer is (pixels on the light's edge dominate both).
+        let lrms = relative_lrms(&img.radiance, &reference.radiance);
+        let again = path_trace(&scene, &cam, t, settings(64, Some(2), 3));
+        let floor = relative_lrms(&again.radiance, &reference.radiance);
+        assert!(
+            lrms < 1.25 * floor,
+            "{name}: relative LRMS {lrms}, path tracer against itself {floor}"
+        );
+        // The same first hits as the path tracer.
+        assert_eq!(img.object_id, reference.object_id);
+        assert_eq!(img.distance, reference.distance);
+        assert_eq!(img.normal, reference.normal);
+    }
+}
+
+/// Unlit, under a uniform irradiance E, a diffuse surface of albedo ρ
+/// leaves ρ E / π, whatever E's magnitude.
+#[test]
+fn uniform_irradiance_adds_albedo_times_e_over_pi() {
+    let mut scene = load("cornell-box");
+    for m in &mut scene.materials {
+        m.emission = None;
+    }
+    let cam = camera(&scene, 20);
+    for e in [1e-6f32, 1.0, 1e8] {
+        let (_, cache) = uniform_cache(&scene, Vec3::splat(e));
+        let (img, _) = multipass(&scene, &cam, 0.3, settings(2, None, 3), &cache);
+        let rho = |k: u32| diffuse_albedo(&scene.material_of(k).bsdf);
+        let hi = (0..scene.objects.len() as u32)
+            .map(rho)
+            .fold(Vec3::ZERO, Vec3::max);
+        let mut exact = 0;
+        for (k, (&l, &id)) in img.radiance.iter().zip(&img.object_id).enumerate() {
+            assert!(l.is_finite(), "pixel {k}: {l}");
+            if id == NO_HIT {
+                continue;
+            }
+            let want = rho(id) * e / std::f32::consts::PI;
+            if ((l - want) / want).abs().max_element() < 1e-5 {
+                exact += 1;
+            }
+            // Pixels on an edge mix objects (and the background).
+            let (a, b) = (Vec3::ZERO, hi * e / 3.1);
+            assert!(l.cmpge(a).all() && l.cmple(b).all(), "pixel {k}: {l}");
+        }
+        assert!(exact * 10 >= img.len() * 8, "e = {e}: {exact} exact pixels");
+    }
+}
+
+/// Only camera and shadow rays in a scene without glossy or mirror
+/// surfaces.
+#[test]
+fn diffuse_scene_traces_no_reflection_rays() {
+    let scene = load("cornell-box");
+    assert!(!scene.has_specular());
+    let cam = camera(&scene, 16);
+    let (_, cache) = uniform_cache(&scene, Vec3::ONE);
+    let spp = 4;
+    let (_, stats) = multipass(&scene, &cam, 0.0, settings(spp, None, 0), &cache);
+    let pixels = cam.width as u64 * cam.height as u64;
+    assert!(
+        stats.rays <= pixels * (1 + 2 * spp as u64),
+        "{} rays",
+        stats.rays
+    );
+    // With glossy and mirror surfaces, reflections are traced.
+    let glossy = load("glossy-sun");
+    let (_, cache) = uniform_cache(&glossy, Vec3::ONE);
+    let cam = camera(&glossy, 16);
+    let (_, stats) = multipass(&glossy, &cam, 0.0, settings(spp, None, 0), &cache);
+    assert!(
+        stats.rays > pixels * (1 + 2 * spp as u64),
+        "{} rays",
+        stats.rays
+    );
+}
+
+#[test]
+fn same_seed_same_image_on_any_thread_count() {
+    let scene = load("glossy-sun");
+    let cam = camera(&scene, 20);
+    let (_, cache) = uniform_cache(&scene, Vec3::splat(0.3));
+    let s = settings(3, None, 9);
+    let (a, _) = multipass(&scene, &cam, 0.5, s, &cache);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let (b, _) = pool.install(|| multipass(&scene, &cam, 0.5, s, &cache));
+    assert_eq!(a.radiance, b.radiance);
+}
+
+/// Light intensities over 14 orders of magnitude: finite, and linear.
+#[test]
+fn extreme_intensities_stay_finite_and_linear() {
+    let base = load("glossy-sun");
+    let cam = camera(&base, 12);
+    let s = settings(2, None, 4);
+    let mut means = Vec::new();
+    for k in [1e-6f32, 1.0, 1e8] {
+        let mut scene = base.clone();
+        for l in &mut scene.lights {
+            match l {
+                Light::Point { intensity, .. } => *intensity *= k,
+                Light::Sun { radiance, .. } => *radiance *= k,
+            }
+        }
+        let (_, cache) = uniform_cache(&scene, Vec3::splat(k));
+        let (img, _) = multipass(&scene, &cam, 0.0, s, &cache);
+        assert!(img.radiance.iter().all(|l| l.is_finite()));
+        means.push(mean(&img) / k);
+    }
+    for m in &means[1..] {
+        assert!(
+            ((*m - means[0]) / means[0]).abs().max_element() < 1e-3,
+            "{means:?}"
+        );
+    }
+}
+
+/// Radiosity indirect light against path-traced indirect light. Needs the
+/// hierarchical radiosity solver.
+mod with_solver {
+    use super::*;
+    use rangewalk::radiosity::{solve, Quality};
+
+    /// Cornell box: multipass with the solved records minus multipass with
+    /// none (the same random numbers, so direct light cancels exactly),
+    /// against the path tracer's full image minus its direct-only one.
+    #[test]
+    fn cornell_box_indirect_matches_path_tracing() {
+        let scene = load("cornell-box");
+        let t = 0.0;
+        let cam = camera(&scene, 24);
+        let engine = accel::build(Backend::Bvh, &scene.geometry(), &scene.at(t)).unwrap();
+        let simplified = Simplified::whole(&scene);
+        let q = Quality::new(0.8).unwrap();
+        let solution = solve(&scene, &simplified, engine.as_ref(), t, q).unwrap();
+        let cache = IrradianceCache::new(&simplified, &solution.indirect);
+        let none = IrradianceCache::new(&simplified, &vec![Vec3::ZERO; simplified.records.len()]);
+        let s = settings(16, None, 5);
+        let with = multipass(&scene, &cam, t, s, &cache).0;
+        let without = multipass(&scene, &cam, t, s, &none).0;
+        let ours: Vec<Vec3> = with
+            .radiance
+            .iter()
+            .zip(&without.radiance)
+            .map(|(a, b)| *a - *b)
+            .collect();
+
+        let full = path_trace(&scene, &cam, t, settings(512, None, 6));
+        let direct = path_trace(&scene, &cam, t, settings(512, Some(2), 7));
+        let reference: Vec<Vec3> = full
+            .radiance
+            .iter()
+            .zip(&direct.radiance)
+            .map(|(a, b)| *a - *b)
+            .collect();
+        let n = reference.len() as f32;
+        let (m_ours, m_ref) = (
+            ours.iter().sum::<Vec3>() / n,
+            reference.iter().sum::<Vec3>() / n,
+        );
+        let mean_error = ((m_ours - m_ref) / m_ref).abs().max_element();
+        let lrms = relative_lrms(&ours, &reference);
+        eprintln!(
+            "Cornell box indirect: radiosity mean {m_ours}, path tracer {m_ref} \
+             (relative error {mean_error:.3}); relative LRMS {lrms:.3}"
+        );
+        assert!(mean_error < 0.15, "mean indirect off by {mean_error}");
+        assert!(lrms < 0.5, "relative LRMS {lrms}");
+    }
+}

@@ -264,20 +264,22 @@ fn zero_cache_equals_direct_only_path_tracing() {
         let scene = load(name);
         let cam = camera(&scene, 24);
         let (_, cache) = uniform_cache(&scene, Vec3::ZERO);
-        let reference = path_trace(&scene, &cam, t, settings(64, Some(2), 1));
-        let (img, _) = multipass(&scene, &cam, t, settings(64, Some(2), 2), &cache);
+        let reference = path_trace(&scene, &cam, t, settings(256, Some(2), 1));
+        let (img, _) = multipass(&scene, &cam, t, settings(256, Some(2), 2), &cache);
         let (a, b) = (mean(&img), mean(&reference));
         assert!(
             ((a - b) / b).abs().max_element() < 0.03,
             "{name}: multipass mean {a}, path tracer {b}"
         );
-        // Per pixel: no further from the path tracer than another run of
-        // the path tracer is (pixels on the light's edge dominate both).
+        // Per pixel: the difference is noise only. Against another run of
+        // the path tracer it is sqrt(2) σ; against multipass with noise kσ
+        // it is sqrt(1 + k²) σ. Allow multipass twice the noise (k = 2).
         let lrms = relative_lrms(&img.radiance, &reference.radiance);
-        let again = path_trace(&scene, &cam, t, settings(64, Some(2), 3));
+        let again = path_trace(&scene, &cam, t, settings(256, Some(2), 3));
         let floor = relative_lrms(&again.radiance, &reference.radiance);
+        eprintln!("{name}: mean {a} vs {b}; relative LRMS {lrms:.3}, path tracer against itself {floor:.3}");
         assert!(
-            lrms < 1.25 * floor,
+            lrms < (2.5f64).sqrt() * floor,
             "{name}: relative LRMS {lrms}, path tracer against itself {floor}"
         );
         // The same first hits as the path tracer.

@@ -7,10 +7,13 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 
-use rangewalk::accel::{self, Backend};
+use rangewalk::accel::{self, Backend, InstancedEngine};
 use rangewalk::camera::{Camera, Projection};
-use rangewalk::image;
-use rangewalk::render::{self, RenderSettings};
+use rangewalk::image::{self, RangeImage};
+use rangewalk::radiosity::lookup::IrradianceCache;
+use rangewalk::radiosity::temporal::{self, TimeSeries};
+use rangewalk::radiosity::{self, bake, Quality, Simplified};
+use rangewalk::render::{self, multipass, RenderSettings, RenderStats};
 use rangewalk::scene::{Bsdf, Light, Scene};
 
 #[derive(Parser)]
@@ -26,7 +29,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Path-trace a converged reference image of the scene at one time.
+    /// Render the scene at one time: path traced (the reference), or with
+    /// indirect light from radiosity (multipass).
     Render {
         scene: PathBuf,
         #[command(flatten)]
@@ -54,6 +58,8 @@ enum Command {
         /// Exposure of the preview in stops (radiance scaled by 2^exposure).
         #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
         exposure: f32,
+        #[command(flatten)]
+        indirect: IndirectArgs,
     },
     /// Write the scene at one time for another renderer.
     Export {
@@ -72,6 +78,55 @@ enum Command {
     },
     /// Describe a scene and which stages it needs.
     Info { scene: PathBuf },
+    /// Simplify the scene, solve radiosity over the animation's time list
+    /// and store the result in a bake directory.
+    Radiosity {
+        scene: PathBuf,
+        /// Quality in [0, 1]: finer simplification, more solves.
+        #[arg(long, default_value_t = 0.5)]
+        quality: f32,
+        /// Bake directory to write (replaced if it holds an earlier bake).
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, value_enum, default_value_t = Backend::default_available())]
+        backend: Backend,
+    },
+}
+
+#[derive(clap::Args)]
+struct IndirectArgs {
+    /// Where diffuse indirect light comes from: traced paths, or radiosity
+    /// records looked up by the multipass renderer.
+    #[arg(long, value_enum, default_value_t = IndirectArg::Path)]
+    indirect: IndirectArg,
+    /// Quality in [0, 1] of the radiosity stages (with `--indirect
+    /// radiosity`; 0.5 if not given).
+    #[arg(long)]
+    quality: Option<f32>,
+    /// Bake directory: used if it exists, written if not (with
+    /// `--indirect radiosity`).
+    #[arg(long)]
+    bake: Option<PathBuf>,
+}
+
+impl IndirectArgs {
+    fn check(&self) -> Result<()> {
+        if self.indirect == IndirectArg::Path {
+            if self.bake.is_some() {
+                bail!("--bake applies to --indirect radiosity only");
+            }
+            if self.quality.is_some() {
+                bail!("--quality applies to --indirect radiosity only");
+            }
+        }
+        Ok(())
+    }
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum IndirectArg {
+    Path,
+    Radiosity,
 }
 
 #[derive(clap::Args)]
@@ -176,15 +231,17 @@ fn run(cli: Cli) -> Result<()> {
             preview,
             hdr,
             exposure,
+            indirect,
         } => {
             if spp == 0 {
                 bail!("--spp must be at least 1");
             }
+            indirect.check()?;
             let s = load(&scene)?;
             view.check_time(&s)?;
             let camera = view.camera(&s)?;
             let build = Instant::now();
-            let engine = accel::build(backend, &s.geometry(), &s.at(view.time))
+            let mut engine = accel::build(backend, &s.geometry(), &s.at(view.time))
                 .with_context(|| format!("building the {backend} ray engine"))?;
             let build_s = build.elapsed().as_secs_f64();
             let settings = RenderSettings {
@@ -192,21 +249,32 @@ fn run(cli: Cli) -> Result<()> {
                 max_depth,
                 seed,
             };
-            let (img, stats) = render::render(&s, engine.as_ref(), &camera, view.time, &settings)?;
-            image::write_exr(&out, &img)?;
-            if let Some(p) = preview {
-                image::write_png_preview(&p, img.width, img.height, &img.radiance, exposure)?;
-            }
-            if let Some(p) = hdr {
-                image::write_hdr(&p, img.width, img.height, &img.radiance)?;
-            }
+            let (img, stats) = match indirect.indirect {
+                IndirectArg::Path => {
+                    render::render(&s, engine.as_ref(), &camera, view.time, &settings)?
+                }
+                IndirectArg::Radiosity => render_multipass(
+                    &s,
+                    &scene,
+                    engine.as_mut(),
+                    &camera,
+                    view.time,
+                    &settings,
+                    &indirect,
+                )?,
+            };
+            write_outputs(&out, &img, preview, hdr, exposure)?;
             println!(
-                "{}: {}x{} at t = {} s, {} spp, backend {}: {:.3} s ({:.3} s build), {:.3} M samples/s, {:.2} M rays/s",
+                "{}: {}x{} at t = {} s, {} spp, {}, backend {}: {:.3} s ({:.3} s build), {:.3} M samples/s, {:.2} M rays/s",
                 out.display(),
                 camera.width,
                 camera.height,
                 view.time,
                 spp,
+                match indirect.indirect {
+                    IndirectArg::Path => "path traced",
+                    IndirectArg::Radiosity => "multipass with radiosity indirect",
+                },
                 backend,
                 stats.seconds,
                 build_s,
@@ -237,8 +305,181 @@ fn run(cli: Cli) -> Result<()> {
             );
         }
         Command::Info { scene } => info(&load(&scene)?),
+        Command::Radiosity {
+            scene,
+            quality,
+            out,
+            backend,
+        } => {
+            let q = Quality::new(quality).context("--quality")?;
+            let s = load(&scene)?;
+            let mut engine = accel::build(backend, &s.geometry(), &s.at(s.animation.start))
+                .with_context(|| format!("building the {backend} ray engine"))?;
+            let (simplified, series) = solve_indirect(&s, engine.as_mut(), q)?;
+            bake::save_with(&out, &scene, &simplified, &series)?;
+            report_radiosity(&s, &simplified, &series);
+            println!("bake written to {}", out.display());
+        }
     }
     Ok(())
+}
+
+fn write_outputs(
+    out: &PathBuf,
+    img: &RangeImage,
+    preview: Option<PathBuf>,
+    hdr: Option<PathBuf>,
+    exposure: f32,
+) -> Result<()> {
+    image::write_exr(out, img)?;
+    if let Some(p) = preview {
+        image::write_png_preview(&p, img.width, img.height, &img.radiance, exposure)?;
+    }
+    if let Some(p) = hdr {
+        image::write_hdr(&p, img.width, img.height, &img.radiance)?;
+    }
+    Ok(())
+}
+
+/// The multipass render: indirect light from the bake (or computed, and
+/// baked if asked), interpolated to `time`.
+fn render_multipass(
+    s: &Scene,
+    scene_path: &PathBuf,
+    engine: &mut dyn InstancedEngine,
+    camera: &Camera,
+    time: f32,
+    settings: &RenderSettings,
+    args: &IndirectArgs,
+) -> Result<(RangeImage, RenderStats)> {
+    let q = Quality::new(args.quality.unwrap_or(0.5)).context("--quality")?;
+    let (simplified, series) = match &args.bake {
+        Some(dir) if dir.join(bake::MANIFEST).exists() => load_bake(s, dir, q)?,
+        bake_dir => {
+            let (simplified, series) = solve_indirect(s, engine, q)?;
+            if let Some(dir) = bake_dir {
+                bake::save_with(dir, scene_path, &simplified, &series)?;
+                eprintln!("bake written to {}", dir.display());
+            }
+            (simplified, series)
+        }
+    };
+    engine
+        .set_transforms(&s.at(time))
+        .with_context(|| format!("posing the scene at t = {time}"))?;
+    let cache = IrradianceCache::new(&simplified, &series.indirect_at(time));
+    multipass::render(s, &*engine, camera, time, settings, &cache)
+}
+
+/// Simplification and temporal decomposition with their radiosity solves.
+fn solve_indirect(
+    s: &Scene,
+    engine: &mut dyn InstancedEngine,
+    q: Quality,
+) -> Result<(Simplified, TimeSeries)> {
+    let simplified = radiosity::simplify(s, engine, q)?;
+    let series = temporal::decompose(s, &simplified, engine, q)?;
+    Ok((simplified, series))
+}
+
+/// A bake made for this scene at this quality.
+fn load_bake(s: &Scene, dir: &PathBuf, q: Quality) -> Result<(Simplified, TimeSeries)> {
+    let (simplified, series, info) = bake::load_with_info(dir)?;
+    if info.quality != q.get() {
+        bail!(
+            "{} was baked at quality {}, not {}: pass --quality {} or another --bake directory",
+            dir.display(),
+            info.quality,
+            q.get(),
+            info.quality
+        );
+    }
+    let triangles: usize = s.objects.iter().map(|o| o.mesh.triangles.len()).sum();
+    let fits = simplified.stats.initial_surfaces == triangles
+        && simplified
+            .records
+            .iter()
+            .all(|r| (r.object as usize) < s.objects.len());
+    if !fits {
+        bail!(
+            "{} was baked from {} ({} triangles), which does not match {} ({triangles} triangles)",
+            dir.display(),
+            info.scene.display(),
+            simplified.stats.initial_surfaces,
+            s.source.display()
+        );
+    }
+    eprintln!(
+        "using the bake in {} ({} solutions)",
+        dir.display(),
+        series.solutions.len()
+    );
+    Ok((simplified, series))
+}
+
+/// What the object-space stages did, and which were skipped and why.
+fn report_radiosity(s: &Scene, simplified: &Simplified, series: &TimeSeries) {
+    let st = &simplified.stats;
+    println!(
+        "simplification: {} initial surfaces, {} pruned, {} final; {} visibility rays; {:.3} s",
+        st.initial_surfaces, st.pruned_surfaces, st.final_surfaces, st.visibility_rays, st.seconds
+    );
+    println!(
+        "  {} patches, {} irradiance records",
+        simplified.patches.len(),
+        simplified.records.len()
+    );
+    let times: Vec<String> = series.times.iter().map(|t| t.to_string()).collect();
+    println!("time list ({}): {}", times.len(), times.join(", "));
+    for sol in &series.solutions {
+        let ss = &sol.stats;
+        println!(
+            "  solve t = {}: {} elements, {} links, {} iterations, residual {:.2e}, {} shadow rays, {:.3} s",
+            sol.time, ss.elements, ss.links, ss.iterations, ss.residual, ss.shadow_rays, ss.seconds
+        );
+    }
+    let d = &series.stats;
+    let limits = Quality::new(series.quality)
+        .ok()
+        .map(temporal::Thresholds::for_quality);
+    if d.static_scene {
+        println!("temporal decomposition skipped: static scene, one solution");
+    } else if d.intervals.is_empty() {
+        println!("temporal decomposition skipped: the animation has no duration");
+    } else {
+        println!(
+            "temporal decomposition: {} solves, depth {} of {} allowed, {:.3} s",
+            d.solves, d.depth, d.max_depth, d.seconds
+        );
+        if let Some(l) = limits {
+            println!(
+                "  split while relative RMS > {:.4} or fewer than {:.0}% of records unchanged",
+                l.relative_rms,
+                100.0 * l.unchanged_fraction
+            );
+        }
+        for i in &d.intervals {
+            let incoherent = limits.is_some_and(|l| {
+                i.relative_rms > l.relative_rms || i.unchanged < l.unchanged_fraction
+            });
+            println!(
+                "  [{}, {}] depth {}: relative RMS {:.4}, {:.1}% records unchanged: {}",
+                i.t0,
+                i.t1,
+                i.depth,
+                i.relative_rms,
+                100.0 * i.unchanged,
+                match (i.split, incoherent) {
+                    (true, _) => "split",
+                    (false, true) => "kept at the depth limit",
+                    (false, false) => "coherent",
+                }
+            );
+        }
+    }
+    if !s.has_specular() {
+        println!("specular rays skipped: no glossy or mirror surfaces");
+    }
 }
 
 fn info(s: &Scene) {

@@ -394,6 +394,98 @@ fn extreme_intensities_stay_finite_and_linear() {
     }
 }
 
+/// The command line with a bake made by hand: `render --indirect
+/// radiosity --bake` reuses it, and refuses one made for another quality.
+mod cli {
+    use super::*;
+    use rangewalk::radiosity::bake;
+    use rangewalk::radiosity::temporal::TimeSeries;
+    use rangewalk::radiosity::{IndirectSolution, SolveStats};
+    use std::process::{Command, Output};
+
+    pub fn rangewalk(args: &[&str]) -> Output {
+        Command::new(env!("CARGO_BIN_EXE_rangewalk"))
+            .args(args)
+            .output()
+            .expect("run rangewalk")
+    }
+
+    pub fn scene_path(name: &str) -> String {
+        format!("{}/scenes/{name}/scene.toml", env!("CARGO_MANIFEST_DIR"))
+    }
+
+    #[test]
+    fn render_uses_an_existing_bake() {
+        let scene = load("cornell-box");
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("cb.bake");
+        let s = Simplified::whole(&scene);
+        let e = 1000.0;
+        let solution = |time| IndirectSolution {
+            time,
+            indirect: vec![Vec3::splat(e); s.records.len()],
+            direct: vec![Vec3::ZERO; s.records.len()],
+            stats: SolveStats::default(),
+        };
+        let series = TimeSeries {
+            times: vec![0.0, 1.0],
+            solutions: vec![solution(0.0), solution(1.0)],
+            quality: 0.5,
+            stats: Default::default(),
+        };
+        bake::save(&dir, &s, &series).unwrap();
+        let cb = scene_path("cornell-box");
+        let out = tmp.path().join("mp.exr");
+        let (d, o) = (dir.to_str().unwrap(), out.to_str().unwrap());
+        let base = [
+            "render",
+            &cb,
+            "--size",
+            "8x8",
+            "--spp",
+            "2",
+            "--out",
+            o,
+            "--backend",
+            "bvh",
+            "--indirect",
+            "radiosity",
+            "--bake",
+            d,
+        ];
+        let r = rangewalk(&base);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        assert!(String::from_utf8_lossy(&r.stdout).contains("multipass"));
+        // The bright uniform records show: hit pixels (but those partly
+        // on the background) get at least ρ_min E / π (the red wall's blue
+        // channel: 0.05 E / π).
+        let img = rangewalk::image::read_exr(&out).unwrap();
+        let hit: Vec<Vec3> = (img.radiance.iter().zip(&img.object_id))
+            .filter(|(_, id)| **id != NO_HIT)
+            .map(|(l, _)| *l)
+            .collect();
+        let bright = hit
+            .iter()
+            .filter(|l| l.min_element() > 0.04 * e / std::f32::consts::PI)
+            .count();
+        assert!(bright * 4 >= hit.len() * 3, "{bright} of {}", hit.len());
+
+        let mut other = base.to_vec();
+        other.extend(["--quality", "0.3"]);
+        let r = rangewalk(&other);
+        assert!(!r.status.success());
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(
+            err.contains("quality 0.5") && err.contains("cb.bake"),
+            "{err}"
+        );
+
+        // --bake and --quality belong to radiosity.
+        let r = rangewalk(&["render", &cb, "--out", o, "--bake", d]);
+        assert!(String::from_utf8_lossy(&r.stderr).contains("--indirect radiosity"));
+    }
+}
+
 /// Radiosity indirect light against path-traced indirect light. Needs the
 /// hierarchical radiosity solver.
 mod with_solver {
@@ -445,5 +537,62 @@ mod with_solver {
         );
         assert!(mean_error < 0.15, "mean indirect off by {mean_error}");
         assert!(lrms < 0.5, "relative LRMS {lrms}");
+    }
+
+    /// `rangewalk radiosity` on the animated Cornell box reports every
+    /// stage and writes a bake that `render` then reuses.
+    #[test]
+    fn radiosity_command_bakes_and_render_reuses_it() {
+        use super::cli::{rangewalk, scene_path};
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("cb.bake");
+        let cb = scene_path("cornell-box");
+        let d = dir.to_str().unwrap();
+        let r = rangewalk(&[
+            "radiosity",
+            &cb,
+            "--quality",
+            "0.3",
+            "--out",
+            d,
+            "--backend",
+            "bvh",
+        ]);
+        let stdout = String::from_utf8_lossy(&r.stdout);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        for part in [
+            "simplification:",
+            "time list",
+            "solve t = 0:",
+            "temporal decomposition:",
+        ] {
+            assert!(stdout.contains(part), "no `{part}` in:\n{stdout}");
+        }
+        let (_, series) = rangewalk::radiosity::bake::load(&dir).unwrap();
+        assert_eq!(series.times.first(), Some(&0.0));
+        assert_eq!(series.times.last(), Some(&1.0));
+        let out = tmp.path().join("mp.exr");
+        let r = rangewalk(&[
+            "render",
+            &cb,
+            "--size",
+            "8x8",
+            "--spp",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+            "--backend",
+            "bvh",
+            "--indirect",
+            "radiosity",
+            "--quality",
+            "0.3",
+            "--bake",
+            d,
+            "--time",
+            "0.4",
+        ]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        assert!(String::from_utf8_lossy(&r.stderr).contains("using the bake"));
     }
 }

@@ -1,6 +1,6 @@
 //! The `rangewalk` command line.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -325,7 +325,7 @@ fn run(cli: Cli) -> Result<()> {
 }
 
 fn write_outputs(
-    out: &PathBuf,
+    out: &Path,
     img: &RangeImage,
     preview: Option<PathBuf>,
     hdr: Option<PathBuf>,
@@ -345,7 +345,7 @@ fn write_outputs(
 /// baked if asked), interpolated to `time`.
 fn render_multipass(
     s: &Scene,
-    scene_path: &PathBuf,
+    scene_path: &Path,
     engine: &mut dyn InstancedEngine,
     camera: &Camera,
     time: f32,
@@ -383,7 +383,7 @@ fn solve_indirect(
 }
 
 /// A bake made for this scene at this quality.
-fn load_bake(s: &Scene, dir: &PathBuf, q: Quality) -> Result<(Simplified, TimeSeries)> {
+fn load_bake(s: &Scene, dir: &Path, q: Quality) -> Result<(Simplified, TimeSeries)> {
     let (simplified, series, info) = bake::load_with_info(dir)?;
     if info.quality != q.get() {
         bail!(

@@ -308,7 +308,7 @@ fn fit_gradient(
     }
     let det = sxx * syy - sxy * sxy;
     // Collinear neighbours leave the gradient across them undetermined.
-    if used < 2 || !(det > 1e-9 * (sxx + syy) * (sxx + syy)) {
+    if used < 2 || det.is_nan() || det <= 1e-9 * (sxx + syy) * (sxx + syy) {
         return [Vec3::ZERO; 3];
     }
     let gx = (bx * syy - by * sxy) / det;

@@ -95,8 +95,7 @@ impl TimeSeries {
         let (Some(first), Some(last)) = (self.solutions.first(), self.solutions.last()) else {
             return Vec::new();
         };
-        // `!(t > ..)` also sends NaN to the first solution.
-        if !(t > self.times[0]) {
+        if t.is_nan() || t <= self.times[0] {
             return first.indirect.clone();
         }
         if t >= self.times[self.times.len() - 1] {
@@ -185,7 +184,7 @@ where
         },
     };
     let a = scene.animation;
-    if scene.is_static() || !(a.end > a.start) {
+    if scene.is_static() || a.end.partial_cmp(&a.start) != Some(std::cmp::Ordering::Greater) {
         d.stats.static_scene = scene.is_static();
         d.solve_at(a.start)?;
     } else {

@@ -394,6 +394,148 @@ fn extreme_intensities_stay_finite_and_linear() {
     }
 }
 
+/// Every triangle of `scene` split in four until no edge exceeds
+/// `max_edge`: records on a grid fine enough for indirect light to vary
+/// between them.
+fn subdivided(scene: &Scene, max_edge: f32) -> Simplified {
+    fn split(t: [Vec3; 3], max_edge: f32, out: &mut Vec<[Vec3; 3]>) {
+        let [a, b, c] = t;
+        let longest = (b - a).length().max((c - b).length()).max((a - c).length());
+        if longest <= max_edge {
+            out.push(t);
+            return;
+        }
+        let (ab, bc, ca) = ((a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5);
+        for t in [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]] {
+            split(t, max_edge, out);
+        }
+    }
+    let mut triangles = Vec::new();
+    for (k, o) in scene.objects.iter().enumerate() {
+        for t in &o.mesh.triangles {
+            let mut out = Vec::new();
+            split(t.map(|v| o.mesh.positions[v as usize]), max_edge, &mut out);
+            triangles.extend(out.into_iter().map(|t| (k as u32, t)));
+        }
+    }
+    Simplified::from_triangles(scene, triangles)
+}
+
+/// Indirect irradiance at every record by path tracing: incoming radiance
+/// over the full sphere (equal-area pixels) at the record, minus what
+/// emitters send directly, cosine-weighted.
+fn gathered_indirect(scene: &Scene, s: &Simplified, t: f32) -> Vec<Vec3> {
+    use rangewalk::camera::Projection;
+    let engine = accel::build(Backend::Bvh, &scene.geometry(), &scene.at(t)).unwrap();
+    let poses = scene.at(t);
+    let size = scene.bounds(t);
+    let eps = 1e-3 * (size.1 - size.0).max_element();
+    // Where each record's patches lie: gathering points are nudged
+    // towards them, off creases.
+    let mut centre = vec![(Vec3::ZERO, 0.0f32); s.records.len()];
+    for p in &s.patches {
+        let c = (p.vertices[0] + p.vertices[1] + p.vertices[2]) / 3.0;
+        for &k in &p.corners {
+            centre[k as usize].0 += c;
+            centre[k as usize].1 += 1.0;
+        }
+    }
+    s.records
+        .iter()
+        .zip(&centre)
+        .map(|(r, &(c, count))| {
+            let pose = poses[r.object as usize];
+            let n = pose.transform_vector3(r.normal).normalize();
+            let p = pose.transform_point3(r.position + (c / count - r.position) * 0.02) + n * eps;
+            let up = if n.y.abs() < 0.9 { Vec3::Y } else { Vec3::X };
+            let cam = Camera::looking(p, n, up, Projection::Sphere, 16, 16).unwrap();
+            let full = render::render(scene, engine.as_ref(), &cam, t, &settings(8, None, 11));
+            let seen = render::render(scene, engine.as_ref(), &cam, t, &settings(8, Some(1), 11));
+            let (full, seen) = (full.unwrap().0, seen.unwrap().0);
+            let mut e = Vec3::ZERO;
+            for j in 0..16 {
+                for i in 0..16 {
+                    let k = (j * 16 + i) as usize;
+                    let dir = cam.ray(i as f32 + 0.5, j as f32 + 0.5).unwrap().dir;
+                    let cos = dir.dot(n).max(0.0);
+                    e += (full.radiance[k] - seen.radiance[k]).max(Vec3::ZERO)
+                        * cos
+                        * cam.pixel_solid_angle(i, j);
+                }
+            }
+            e
+        })
+        .collect()
+}
+
+/// Path-traced indirect light: the full image minus the direct-only one,
+/// with the same random numbers, so that emitters seen directly and direct
+/// light cancel exactly.
+fn path_traced_indirect(scene: &Scene, cam: &Camera, t: f32, spp: u32, seed: u64) -> Vec<Vec3> {
+    let full = path_trace(scene, cam, t, settings(spp, None, seed));
+    let direct = path_trace(scene, cam, t, settings(spp, Some(2), seed));
+    full.radiance
+        .iter()
+        .zip(&direct.radiance)
+        .map(|(a, b)| *a - *b)
+        .collect()
+}
+
+/// Multipass indirect light: with the records minus with none (the same
+/// random numbers, so direct light cancels exactly).
+fn multipass_indirect(
+    scene: &Scene,
+    cam: &Camera,
+    t: f32,
+    s: &Simplified,
+    e: &[Vec3],
+) -> Vec<Vec3> {
+    let cache = IrradianceCache::new(s, e);
+    let none = IrradianceCache::new(s, &vec![Vec3::ZERO; s.records.len()]);
+    let st = settings(16, None, 5);
+    let with = multipass(scene, cam, t, st, &cache).0;
+    let without = multipass(scene, cam, t, st, &none).0;
+    with.radiance
+        .iter()
+        .zip(&without.radiance)
+        .map(|(a, b)| *a - *b)
+        .collect()
+}
+
+fn compare_indirect(what: &str, ours: &[Vec3], reference: &[Vec3]) -> (f32, f64) {
+    let n = reference.len() as f32;
+    let (m_ours, m_ref) = (
+        ours.iter().sum::<Vec3>() / n,
+        reference.iter().sum::<Vec3>() / n,
+    );
+    let mean_error = ((m_ours - m_ref) / m_ref).abs().max_element();
+    let lrms = relative_lrms(ours, reference);
+    eprintln!(
+        "{what}: mean {m_ours}, path tracer {m_ref} (relative error {mean_error:.3}); \
+         relative LRMS {lrms:.3}"
+    );
+    (mean_error, lrms)
+}
+
+/// Records whose irradiance is gathered by path tracing, looked up by the
+/// multipass renderer, give the path tracer's indirect light: the lookup
+/// and the renderer's use of it are right, whatever the solver.
+#[test]
+fn gathered_records_give_path_traced_indirect_light() {
+    let scene = load("cornell-box");
+    let t = 0.0;
+    let cam = camera(&scene, 24);
+    let s = subdivided(&scene, 150.0);
+    let e = gathered_indirect(&scene, &s, t);
+    let ours = multipass_indirect(&scene, &cam, t, &s, &e);
+    let reference = path_traced_indirect(&scene, &cam, t, 512, 6);
+    // Measured: mean 0.019, LRMS 0.105, where two path-traced references
+    // of different seeds differ by 0.003 and 0.117.
+    let (mean_error, lrms) = compare_indirect("Cornell box, gathered records", &ours, &reference);
+    assert!(mean_error < 0.05, "mean indirect off by {mean_error}");
+    assert!(lrms < 0.2, "relative LRMS {lrms}");
+}
+
 /// The command line with a bake made by hand: `render --indirect
 /// radiosity --bake` reuses it, and refuses one made for another quality.
 mod cli {
@@ -492,51 +634,23 @@ mod with_solver {
     use super::*;
     use rangewalk::radiosity::{solve, Quality};
 
-    /// Cornell box: multipass with the solved records minus multipass with
-    /// none (the same random numbers, so direct light cancels exactly),
-    /// against the path tracer's full image minus its direct-only one.
+    /// Cornell box, patches no larger than 150 mm: multipass indirect light
+    /// from the solved records against the path tracer's.
     #[test]
     fn cornell_box_indirect_matches_path_tracing() {
         let scene = load("cornell-box");
         let t = 0.0;
         let cam = camera(&scene, 24);
         let engine = accel::build(Backend::Bvh, &scene.geometry(), &scene.at(t)).unwrap();
-        let simplified = Simplified::whole(&scene);
+        let s = subdivided(&scene, 150.0);
         let q = Quality::new(0.8).unwrap();
-        let solution = solve(&scene, &simplified, engine.as_ref(), t, q).unwrap();
-        let cache = IrradianceCache::new(&simplified, &solution.indirect);
-        let none = IrradianceCache::new(&simplified, &vec![Vec3::ZERO; simplified.records.len()]);
-        let s = settings(16, None, 5);
-        let with = multipass(&scene, &cam, t, s, &cache).0;
-        let without = multipass(&scene, &cam, t, s, &none).0;
-        let ours: Vec<Vec3> = with
-            .radiance
-            .iter()
-            .zip(&without.radiance)
-            .map(|(a, b)| *a - *b)
-            .collect();
-
-        let full = path_trace(&scene, &cam, t, settings(512, None, 6));
-        let direct = path_trace(&scene, &cam, t, settings(512, Some(2), 7));
-        let reference: Vec<Vec3> = full
-            .radiance
-            .iter()
-            .zip(&direct.radiance)
-            .map(|(a, b)| *a - *b)
-            .collect();
-        let n = reference.len() as f32;
-        let (m_ours, m_ref) = (
-            ours.iter().sum::<Vec3>() / n,
-            reference.iter().sum::<Vec3>() / n,
-        );
-        let mean_error = ((m_ours - m_ref) / m_ref).abs().max_element();
-        let lrms = relative_lrms(&ours, &reference);
-        eprintln!(
-            "Cornell box indirect: radiosity mean {m_ours}, path tracer {m_ref} \
-             (relative error {mean_error:.3}); relative LRMS {lrms:.3}"
-        );
-        assert!(mean_error < 0.15, "mean indirect off by {mean_error}");
-        assert!(lrms < 0.5, "relative LRMS {lrms}");
+        let solution = solve(&scene, &s, engine.as_ref(), t, q).unwrap();
+        let ours = multipass_indirect(&scene, &cam, t, &s, &solution.indirect);
+        let reference = path_traced_indirect(&scene, &cam, t, 512, 6);
+        let (mean_error, lrms) =
+            compare_indirect("Cornell box, radiosity records", &ours, &reference);
+        assert!(mean_error < 0.1, "mean indirect off by {mean_error}");
+        assert!(lrms < 0.35, "relative LRMS {lrms}");
     }
 
     /// `rangewalk radiosity` on the animated Cornell box reports every

@@ -100,7 +100,7 @@ struct IndirectArgs {
     #[arg(long, value_enum, default_value_t = IndirectArg::Path)]
     indirect: IndirectArg,
     /// Quality in [0, 1] of the radiosity stages (with `--indirect
-    /// radiosity`; 0.5 if not given).
+    /// radiosity`): 0.5 if not given, or the bake's.
     #[arg(long)]
     quality: Option<f32>,
     /// Bake directory: used if it exists, written if not (with
@@ -352,10 +352,14 @@ fn render_multipass(
     settings: &RenderSettings,
     args: &IndirectArgs,
 ) -> Result<(RangeImage, RenderStats)> {
-    let q = Quality::new(args.quality.unwrap_or(0.5)).context("--quality")?;
+    let q = args
+        .quality
+        .map(|q| Quality::new(q).context("--quality"))
+        .transpose()?;
     let (simplified, series) = match &args.bake {
         Some(dir) if dir.join(bake::MANIFEST).exists() => load_bake(s, dir, q)?,
         bake_dir => {
+            let q = q.unwrap_or(Quality::new(0.5)?);
             let (simplified, series) = solve_indirect(s, engine, q)?;
             if let Some(dir) = bake_dir {
                 bake::save_with(dir, scene_path, &simplified, &series)?;
@@ -382,10 +386,10 @@ fn solve_indirect(
     Ok((simplified, series))
 }
 
-/// A bake made for this scene at this quality.
-fn load_bake(s: &Scene, dir: &Path, q: Quality) -> Result<(Simplified, TimeSeries)> {
+/// A bake made for this scene (at quality `q`, if given).
+fn load_bake(s: &Scene, dir: &Path, q: Option<Quality>) -> Result<(Simplified, TimeSeries)> {
     let (simplified, series, info) = bake::load_with_info(dir)?;
-    if info.quality != q.get() {
+    if let Some(q) = q.filter(|q| q.get() != info.quality) {
         bail!(
             "{} was baked at quality {}, not {}: pass --quality {} or another --bake directory",
             dir.display(),
@@ -410,8 +414,9 @@ fn load_bake(s: &Scene, dir: &Path, q: Quality) -> Result<(Simplified, TimeSerie
         );
     }
     eprintln!(
-        "using the bake in {} ({} solutions)",
+        "using the bake in {} (quality {}, {} solutions)",
         dir.display(),
+        info.quality,
         series.solutions.len()
     );
     Ok((simplified, series))

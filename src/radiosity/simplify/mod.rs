@@ -1,10 +1,81 @@
 //! Geometric simplification for the radiosity solver (paper §4.3).
+//!
+//! Radiosity cost grows with the square of the patch count, while indirect
+//! light is smooth: a scene of tens of thousands of triangles is reduced to
+//! a few thousand patches of about one size. Two criteria decide, both
+//! driven by the quality `q` (see [`Params`] and `docs/simplification.md`):
+//!
+//! - *visibility*: rays from random viewpoints of the view space at random
+//!   times count hits per object; rarely hit objects are left out, moderately
+//!   hit ones coarsened further, frequently hit ones kept;
+//! - *area*: objects smaller than half a patch are pruned, objects whose
+//!   triangles are smaller than a patch are coarsened with meshopt, and
+//!   every kept triangle is bisected down to a maximum edge length.
+//!
+//! Emitters are never left out or coarsened, so the emitted power stays
+//! exact. Left-out objects still block light: the solver traces visibility
+//! in the full scene.
 
-use anyhow::Result;
+use std::time::Instant;
 
-use super::{Quality, Simplified};
+use anyhow::{ensure, Result};
+use glam::Vec3;
+
+use super::{Quality, Simplified, SimplifyStats};
 use crate::accel::InstancedEngine;
 use crate::scene::Scene;
+
+mod coarsen;
+mod params;
+mod tessellate;
+mod visibility;
+
+pub use params::Params;
+
+/// How often the visibility rays hit an object.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Seen {
+    Rarely,
+    Moderately,
+    Frequently,
+}
+
+/// What became of an object.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fate {
+    /// Left out: (almost) never seen from the view space.
+    Unseen,
+    /// Left out: smaller than half a patch.
+    Small,
+    /// Reduced with meshopt (its area is then approximate), then bisected.
+    Coarsened,
+    /// Every input triangle kept, then bisected: the area is exact.
+    Whole,
+}
+
+/// One object's part in the simplification.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObjectReport {
+    pub hits: u64,
+    pub seen: Seen,
+    pub fate: Fate,
+    pub input_triangles: usize,
+    /// Triangles left after pruning and coarsening, before bisection.
+    pub kept_triangles: usize,
+    pub patches: usize,
+}
+
+/// The simplified scene with the decisions that made it, for reports.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    pub simplified: Simplified,
+    pub params: Params,
+    /// In object order.
+    pub objects: Vec<ObjectReport>,
+    /// Patches whose bisection the depth guard stopped with an edge still
+    /// longer than `params.max_edge`.
+    pub depth_limited: usize,
+}
 
 /// Simplifies `scene` for radiosity at `quality`. `engine` holds the full
 /// scene; it is moved to random times to measure visibility from the view
@@ -14,6 +85,142 @@ pub fn simplify(
     engine: &mut dyn InstancedEngine,
     quality: Quality,
 ) -> Result<Simplified> {
-    let _ = (scene, engine, quality);
-    todo!("simplification")
+    Ok(simplify_report(scene, engine, quality)?.simplified)
+}
+
+/// [`simplify`], telling what happened to each object.
+///
+/// Without a view space the scene's cameras are the viewpoints (rays in a
+/// wide cone around each camera's direction); without either, visibility
+/// cannot be measured and every object counts as frequently seen.
+pub fn simplify_report(
+    scene: &Scene,
+    engine: &mut dyn InstancedEngine,
+    quality: Quality,
+) -> Result<Report> {
+    let clock = Instant::now();
+    let file = scene.source.display();
+    let initial: usize = scene.objects.iter().map(|o| o.mesh.triangles.len()).sum();
+    ensure!(initial > 0, "{file}: the scene has no triangles to simplify");
+    let start = scene.animation.start;
+    let (lo, hi) = scene.bounds(start);
+    let size = (hi - lo).length();
+    ensure!(
+        size.is_finite() && size > 0.0,
+        "{file}: the scene's bounds {lo}..{hi} at t = {start} have no usable size"
+    );
+    let params = Params::new(quality, size);
+    let counts = visibility::count_hits(scene, engine, params.visibility_rays)?;
+    let total_hits: u64 = counts.as_ref().map_or(0, |c| c.hits.iter().sum());
+    let poses = scene.at(start);
+
+    let mut objects = Vec::with_capacity(scene.objects.len());
+    let mut pieces: Vec<(u32, [Vec3; 3])> = Vec::new();
+    let mut depth_limited = 0;
+    for (i, o) in scene.objects.iter().enumerate() {
+        let emitter = scene.materials[o.material].emission.is_some();
+        let hits = counts.as_ref().map_or(0, |c| c.hits[i]);
+        let seen = match &counts {
+            None => Seen::Frequently,
+            Some(_) => {
+                let share = if total_hits == 0 {
+                    0.0
+                } else {
+                    hits as f64 / total_hits as f64
+                };
+                if hits == 0 || share < params.rare_share {
+                    Seen::Rarely
+                } else if share < params.moderate_share {
+                    Seen::Moderately
+                } else {
+                    Seen::Frequently
+                }
+            }
+        };
+        // Sizes are compared in world units; the mesh is in object space.
+        let scale = poses[i].matrix3.x_axis.length();
+        let scale = if scale.is_finite() && scale > 0.0 {
+            scale
+        } else {
+            1.0
+        };
+        let area = o.mesh.area() * scale * scale;
+        let whole = || -> Vec<[Vec3; 3]> {
+            o.mesh
+                .triangles
+                .iter()
+                .map(|t| t.map(|v| o.mesh.positions[v as usize]))
+                .filter(|t| nondegenerate(t))
+                .collect()
+        };
+        let (fate, kept) = if !emitter && seen == Seen::Rarely {
+            (Fate::Unseen, Vec::new())
+        } else if !emitter && area < 0.5 * params.patch_area {
+            (Fate::Small, Vec::new())
+        } else {
+            let keep = if seen == Seen::Moderately {
+                params.moderate_keep
+            } else {
+                1.0
+            };
+            let budget = (area / params.patch_area * keep).ceil().max(1.0) as usize;
+            if !emitter && budget < o.mesh.triangles.len() {
+                let c = coarsen::coarsen(&o.mesh, budget, params.coarsen_error);
+                if c.len() < o.mesh.triangles.len() && !c.is_empty() {
+                    (Fate::Coarsened, c)
+                } else {
+                    (Fate::Whole, whole())
+                }
+            } else {
+                (Fate::Whole, whole())
+            }
+        };
+        let mut split = Vec::new();
+        for &t in &kept {
+            split.clear();
+            if tessellate::bisect(t, params.max_edge / scale, params.max_depth, &mut split) {
+                depth_limited += 1;
+            }
+            pieces.extend(split.iter().map(|&p| (i as u32, p)));
+        }
+        objects.push(ObjectReport {
+            hits,
+            seen,
+            fate,
+            input_triangles: o.mesh.triangles.len(),
+            kept_triangles: kept.len(),
+            patches: 0,
+        });
+    }
+
+    let mut simplified = Simplified::from_triangles(scene, pieces);
+    for p in &simplified.patches {
+        objects[p.object as usize].patches += 1;
+    }
+    ensure!(
+        !simplified.patches.is_empty(),
+        "{file}: nothing is left for radiosity at quality {}: all {initial} triangles were pruned \
+         (no object was hit from the view space or the cameras, and none emits)",
+        quality.get()
+    );
+    let kept: usize = objects.iter().map(|r| r.kept_triangles).sum();
+    simplified.stats = SimplifyStats {
+        initial_surfaces: initial,
+        pruned_surfaces: initial - kept,
+        final_surfaces: simplified.patches.len(),
+        visibility_rays: counts.as_ref().map_or(0, |c| c.rays),
+        seconds: clock.elapsed().as_secs_f64(),
+    };
+    Ok(Report {
+        simplified,
+        params,
+        objects,
+        depth_limited,
+    })
+}
+
+/// The test `from_triangles` applies, so that kept triangles become patches.
+pub(super) fn nondegenerate(t: &[Vec3; 3]) -> bool {
+    let c = (t[1] - t[0]).cross(t[2] - t[0]);
+    c.length() > 0.0 && c.normalize_or_zero() != Vec3::ZERO
 }

@@ -8,9 +8,9 @@
 //! - *visibility*: rays from random viewpoints of the view space at random
 //!   times count hits per object; rarely hit objects are left out, moderately
 //!   hit ones coarsened further, frequently hit ones kept;
-//! - *area*: objects smaller than half a patch are pruned, objects whose
-//!   triangles are smaller than a patch are coarsened with meshopt, and
-//!   every kept triangle is bisected down to a maximum edge length.
+//! - *area*: connected parts smaller than a patch or two are pruned, objects
+//!   whose triangles are smaller than a patch are coarsened with meshopt,
+//!   and every kept triangle is bisected down to a maximum edge length.
 //!
 //! Emitters are never left out or coarsened, so the emitted power stays
 //! exact. Left-out objects still block light: the solver traces visibility
@@ -23,13 +23,15 @@ use glam::Vec3;
 
 use super::{Quality, Simplified, SimplifyStats};
 use crate::accel::InstancedEngine;
-use crate::scene::Scene;
+use crate::scene::{Mesh, Scene};
 
 mod coarsen;
 mod params;
+mod parts;
 mod tessellate;
 mod visibility;
 
+pub use coarsen::AREA_TOLERANCE;
 pub use params::Params;
 
 /// How often the visibility rays hit an object.
@@ -45,9 +47,11 @@ pub enum Seen {
 pub enum Fate {
     /// Left out: (almost) never seen from the view space.
     Unseen,
-    /// Left out: smaller than half a patch.
+    /// Left out: every connected part is smaller than
+    /// [`Params::min_part_area`].
     Small,
-    /// Reduced with meshopt (its area is then approximate), then bisected.
+    /// Reduced with meshopt (its area then within [`AREA_TOLERANCE`]), then
+    /// bisected.
     Coarsened,
     /// Every input triangle kept, then bisected: the area is exact.
     Whole,
@@ -62,6 +66,9 @@ pub struct ObjectReport {
     pub input_triangles: usize,
     /// Triangles left after pruning and coarsening, before bisection.
     pub kept_triangles: usize,
+    /// Object-space area of the connected parts pruned as smaller than
+    /// [`Params::min_part_area`] (the rest of a kept object keeps its area).
+    pub pruned_area: f32,
     pub patches: usize,
 }
 
@@ -144,41 +151,36 @@ pub fn simplify_report(
         } else {
             1.0
         };
-        let area = o.mesh.area() * scale * scale;
-        let whole = || -> Vec<[Vec3; 3]> {
-            o.mesh
-                .triangles
-                .iter()
-                .map(|t| t.map(|v| o.mesh.positions[v as usize]))
-                .filter(|t| nondegenerate(t))
-                .collect()
-        };
-        let (fate, kept) = if !emitter && seen == Seen::Rarely {
-            (Fate::Unseen, Vec::new())
-        } else if !emitter && area < 0.5 * params.patch_area {
-            (Fate::Small, Vec::new())
+        let (fate, kept, pruned_area) = if emitter {
+            (Fate::Whole, triangles(&o.mesh), 0.0)
+        } else if seen == Seen::Rarely {
+            (Fate::Unseen, Vec::new(), 0.0)
         } else {
+            let min_area = params.min_part_area / (scale * scale);
+            let (mesh, pruned_area, _) = parts::prune_small(&o.mesh, min_area);
             let keep = if seen == Seen::Moderately {
                 params.moderate_keep
             } else {
                 1.0
             };
-            let budget = (area / params.patch_area * keep).ceil().max(1.0) as usize;
-            if !emitter && budget < o.mesh.triangles.len() {
-                let c = coarsen::coarsen(&o.mesh, budget, params.coarsen_error);
-                if c.len() < o.mesh.triangles.len() && !c.is_empty() {
-                    (Fate::Coarsened, c)
-                } else {
-                    (Fate::Whole, whole())
-                }
+            let budget = mesh.area() * scale * scale / params.patch_area * keep;
+            let budget = budget.ceil().max(1.0) as usize;
+            if mesh.triangles.is_empty() {
+                (Fate::Small, Vec::new(), pruned_area)
+            } else if budget >= mesh.triangles.len() {
+                (Fate::Whole, triangles(&mesh), pruned_area)
             } else {
-                (Fate::Whole, whole())
+                match coarsen::coarsen(&mesh, budget) {
+                    Some(c) => (Fate::Coarsened, c, pruned_area),
+                    None => (Fate::Whole, triangles(&mesh), pruned_area),
+                }
             }
         };
         let mut split = Vec::new();
         for &t in &kept {
             split.clear();
-            if tessellate::bisect(t, params.max_edge / scale, params.max_depth, &mut split) {
+            let (edge, area) = (params.max_edge / scale, params.min_patch_area / (scale * scale));
+            if tessellate::bisect(t, edge, area, params.max_depth, &mut split) {
                 depth_limited += 1;
             }
             pieces.extend(split.iter().map(|&p| (i as u32, p)));
@@ -189,6 +191,7 @@ pub fn simplify_report(
             fate,
             input_triangles: o.mesh.triangles.len(),
             kept_triangles: kept.len(),
+            pruned_area,
             patches: 0,
         });
     }
@@ -217,6 +220,15 @@ pub fn simplify_report(
         objects,
         depth_limited,
     })
+}
+
+/// The non-degenerate triangles of `mesh`.
+fn triangles(mesh: &Mesh) -> Vec<[Vec3; 3]> {
+    mesh.triangles
+        .iter()
+        .map(|t| t.map(|v| mesh.positions[v as usize]))
+        .filter(nondegenerate)
+        .collect()
 }
 
 /// The test `from_triangles` applies, so that kept triangles become patches.

@@ -309,13 +309,13 @@ def main():
     o.group("pedestal")
     o.box((5.0, 0, 4.9), (5.6, 0.9, 5.5), 8)
     o.group("sculpture")
-    o.sphere((5.3, 1.2, 5.2), 0.3, 128, 64)
+    o.sphere((5.3, 1.2, 5.2), 0.3, 96, 48)
     o.group("torus")
-    o.torus((4.1, 0.86, 3.1), 0.16, 0.07, 96, 48)
+    o.torus((4.1, 0.86, 3.1), 0.16, 0.07, 64, 32)
     o.group("vases")
     vase = [(0.05 + 0.06 * math.sin(math.pi * i / 24) ** 2 + 0.02 * i / 24, 0.32 * i / 24) for i in range(25)]
     for cx, cy, cz in ((6.1, 0.75, 1.1), (6.7, 0.75, 1.3), (1.0, 2.08, 5.8), (2.9, 1.58, 5.8), (7.6, 0, 0.4)):
-        o.revolve((cx, cy, cz), vase, 48, True, False)
+        o.revolve((cx, cy, cz), vase, 36, True, False)
     o.group("mirror")
     o.grid((W - 0.02, 0.7, 4.0), (0, 1.5, 0), (0, 0, 1.4), 1, 1)
 

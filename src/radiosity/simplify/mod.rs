@@ -108,7 +108,10 @@ pub fn simplify_report(
     let clock = Instant::now();
     let file = scene.source.display();
     let initial: usize = scene.objects.iter().map(|o| o.mesh.triangles.len()).sum();
-    ensure!(initial > 0, "{file}: the scene has no triangles to simplify");
+    ensure!(
+        initial > 0,
+        "{file}: the scene has no triangles to simplify"
+    );
     let start = scene.animation.start;
     let (lo, hi) = scene.bounds(start);
     let size = (hi - lo).length();
@@ -179,7 +182,10 @@ pub fn simplify_report(
         let mut split = Vec::new();
         for &t in &kept {
             split.clear();
-            let (edge, area) = (params.max_edge / scale, params.min_patch_area / (scale * scale));
+            let (edge, area) = (
+                params.max_edge / scale,
+                params.min_patch_area / (scale * scale),
+            );
             if tessellate::bisect(t, edge, area, params.max_depth, &mut split) {
                 depth_limited += 1;
             }

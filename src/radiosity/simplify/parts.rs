@@ -15,10 +15,12 @@ pub fn weld(positions: &[Vec3]) -> (Vec<Vec3>, Vec<u32>) {
     let remap = positions
         .iter()
         .map(|p| {
-            *index.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
-                verts.push(*p);
-                (verts.len() - 1) as u32
-            })
+            *index
+                .entry(p.to_array().map(f32::to_bits))
+                .or_insert_with(|| {
+                    verts.push(*p);
+                    (verts.len() - 1) as u32
+                })
         })
         .collect();
     (verts, remap)

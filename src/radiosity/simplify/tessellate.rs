@@ -58,7 +58,11 @@ mod tests {
 
     #[test]
     fn pieces_are_short_and_cover_the_triangle_with_its_winding() {
-        let tri = [Vec3::ZERO, Vec3::new(3.0, 0.1, 0.0), Vec3::new(0.4, 2.0, 0.5)];
+        let tri = [
+            Vec3::ZERO,
+            Vec3::new(3.0, 0.1, 0.0),
+            Vec3::new(0.4, 2.0, 0.5),
+        ];
         let mut out = Vec::new();
         assert!(!bisect(tri, 0.3, 0.0, 40, &mut out));
         let total: Vec3 = out.iter().map(area).sum();

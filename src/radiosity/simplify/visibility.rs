@@ -68,7 +68,11 @@ pub fn count_hits(
                     Viewer::Space(s) => (point_in(s, &mut rng), Vec3::Z, -1.0),
                     Viewer::Cameras(c) => {
                         let cam = &c[view as usize % c.len()];
-                        (cam.position, cam.direction, CAMERA_CONE_DEG.to_radians().cos())
+                        (
+                            cam.position,
+                            cam.direction,
+                            CAMERA_CONE_DEG.to_radians().cos(),
+                        )
                     }
                 };
                 let rays: Vec<Ray> = (0..per_view)

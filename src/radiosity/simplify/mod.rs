@@ -69,6 +69,7 @@ pub struct ObjectReport {
     /// Object-space area of the connected parts pruned as smaller than
     /// [`Params::min_part_area`] (the rest of a kept object keeps its area).
     pub pruned_area: f32,
+    pub pruned_parts: usize,
     pub patches: usize,
 }
 
@@ -132,20 +133,7 @@ pub fn simplify_report(
         let hits = counts.as_ref().map_or(0, |c| c.hits[i]);
         let seen = match &counts {
             None => Seen::Frequently,
-            Some(_) => {
-                let share = if total_hits == 0 {
-                    0.0
-                } else {
-                    hits as f64 / total_hits as f64
-                };
-                if hits == 0 || share < params.rare_share {
-                    Seen::Rarely
-                } else if share < params.moderate_share {
-                    Seen::Moderately
-                } else {
-                    Seen::Frequently
-                }
-            }
+            Some(_) => classify(hits, total_hits, &params),
         };
         // Sizes are compared in world units; the mesh is in object space.
         let scale = poses[i].matrix3.x_axis.length();
@@ -154,33 +142,18 @@ pub fn simplify_report(
         } else {
             1.0
         };
-        let (fate, kept, pruned_area) = if emitter {
-            (Fate::Whole, triangles(&o.mesh), 0.0)
-        } else if seen == Seen::Rarely {
-            (Fate::Unseen, Vec::new(), 0.0)
-        } else {
-            let min_area = params.min_part_area / (scale * scale);
-            let (mesh, pruned_area, _) = parts::prune_small(&o.mesh, min_area);
-            let keep = if seen == Seen::Moderately {
-                params.moderate_keep
-            } else {
-                1.0
-            };
-            let budget = mesh.area() * scale * scale / params.patch_area * keep;
-            let budget = budget.ceil().max(1.0) as usize;
-            if mesh.triangles.is_empty() {
-                (Fate::Small, Vec::new(), pruned_area)
-            } else if budget >= mesh.triangles.len() {
-                (Fate::Whole, triangles(&mesh), pruned_area)
-            } else {
-                match coarsen::coarsen(&mesh, budget) {
-                    Some(c) => (Fate::Coarsened, c, pruned_area),
-                    None => (Fate::Whole, triangles(&mesh), pruned_area),
-                }
+        let r = if emitter {
+            Reduced {
+                fate: Fate::Whole,
+                kept: triangles(&o.mesh),
+                pruned_area: 0.0,
+                pruned_parts: 0,
             }
+        } else {
+            reduce(&o.mesh, seen, scale, &params)
         };
         let mut split = Vec::new();
-        for &t in &kept {
+        for &t in &r.kept {
             split.clear();
             let (edge, area) = (
                 params.max_edge / scale,
@@ -194,10 +167,11 @@ pub fn simplify_report(
         objects.push(ObjectReport {
             hits,
             seen,
-            fate,
+            fate: r.fate,
             input_triangles: o.mesh.triangles.len(),
-            kept_triangles: kept.len(),
-            pruned_area,
+            kept_triangles: r.kept.len(),
+            pruned_area: r.pruned_area,
+            pruned_parts: r.pruned_parts,
             patches: 0,
         });
     }
@@ -226,6 +200,68 @@ pub fn simplify_report(
         objects,
         depth_limited,
     })
+}
+
+fn classify(hits: u64, total_hits: u64, params: &Params) -> Seen {
+    let share = if total_hits == 0 {
+        0.0
+    } else {
+        hits as f64 / total_hits as f64
+    };
+    if hits == 0 || share < params.rare_share {
+        Seen::Rarely
+    } else if share < params.moderate_share {
+        Seen::Moderately
+    } else {
+        Seen::Frequently
+    }
+}
+
+/// What is left of one object before bisection.
+struct Reduced {
+    fate: Fate,
+    kept: Vec<[Vec3; 3]>,
+    pruned_area: f32,
+    pruned_parts: usize,
+}
+
+/// Applies the visibility class and the area criterion to a non-emitter:
+/// left out when rarely seen, small parts pruned, coarsened to about one
+/// triangle per patch area (fewer when only moderately seen).
+fn reduce(mesh: &Mesh, seen: Seen, scale: f32, params: &Params) -> Reduced {
+    if seen == Seen::Rarely {
+        return Reduced {
+            fate: Fate::Unseen,
+            kept: Vec::new(),
+            pruned_area: 0.0,
+            pruned_parts: 0,
+        };
+    }
+    let min_area = params.min_part_area / (scale * scale);
+    let (mesh, pruned_area, pruned_parts) = parts::prune_small(mesh, min_area);
+    let keep = if seen == Seen::Moderately {
+        params.moderate_keep
+    } else {
+        1.0
+    };
+    let budget = mesh.area() * scale * scale / params.patch_area * keep;
+    let budget = budget.ceil().max(1.0) as usize;
+    let (fate, kept) = if mesh.triangles.is_empty() {
+        (Fate::Small, Vec::new())
+    } else if budget >= mesh.triangles.len() {
+        (Fate::Whole, triangles(&mesh))
+    } else {
+        match coarsen::coarsen(&mesh, budget) {
+            Some(c) => (Fate::Coarsened, c),
+            None => (Fate::Whole, triangles(&mesh)),
+        }
+    };
+    Reduced {
+        fate,
+        kept,
+        pruned_area,
+        pruned_parts,
+    }
 }
 
 /// The non-degenerate triangles of `mesh`.

@@ -56,7 +56,10 @@ pub fn prune_small(mesh: &Mesh, min_area: f32) -> (Mesh, f32, usize) {
         })
         .collect();
     let small = |r: &u32| part_area[r] < min_area;
-    let pruned_area = part_area.values().filter(|&&a| a < min_area).sum();
+    let pruned_area = part_area
+        .values()
+        .filter(|&&a| a < min_area)
+        .fold(0.0, |s, a| s + a);
     let pruned_parts = part_area.values().filter(|&&a| a < min_area).count();
     let kept = Mesh {
         positions: mesh.positions.clone(),

@@ -392,3 +392,34 @@ fn studio_patch_counts_suit_the_solver() {
         assert!((lo..=hi).contains(&s.final_surfaces), "q {q}: {s:?}");
     }
 }
+
+#[test]
+fn the_cornell_box_simplifies_alike_at_every_scale() {
+    let load = |name: &str| {
+        Scene::load(
+            Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("scenes")
+                .join(name)
+                .join("scene.toml"),
+        )
+        .unwrap()
+    };
+    let base = load("cornell-box");
+    let r = run(&base, Backend::default_available(), 0.6);
+    check_invariants(&base, &r);
+    let light = object(&base, "light");
+    assert_eq!(r.objects[light].fate, Fate::Whole);
+    let fates: Vec<Fate> = r.objects.iter().map(|o| o.fate).collect();
+    for (name, scale) in [("cornell-box-1e-4", 1e-4), ("cornell-box-1e4", 1e4)] {
+        let scene = load(name);
+        let s = run(&scene, Backend::default_available(), 0.6);
+        check_invariants(&scene, &s);
+        assert_eq!(s.objects.iter().map(|o| o.fate).collect::<Vec<_>>(), fates);
+        assert_eq!(
+            s.simplified.stats.final_surfaces, r.simplified.stats.final_surfaces,
+            "{name}"
+        );
+        let ratio = s.params.max_edge / r.params.max_edge / scale;
+        assert!((ratio - 1.0).abs() < 1e-3, "{name}: {ratio}");
+    }
+}

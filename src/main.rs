@@ -72,6 +72,11 @@ enum Command {
     },
     /// Describe a scene and which stages it needs.
     Info { scene: PathBuf },
+    /// Measure a stage against path-traced references and write a report.
+    Experiment {
+        #[command(subcommand)]
+        experiment: rangewalk::eval::Experiment,
+    },
 }
 
 #[derive(clap::Args)]
@@ -237,6 +242,7 @@ fn run(cli: Cli) -> Result<()> {
             );
         }
         Command::Info { scene } => info(&load(&scene)?),
+        Command::Experiment { experiment } => rangewalk::eval::run(experiment)?,
     }
     Ok(())
 }

@@ -142,7 +142,7 @@ mod tests {
     fn meaningless_comparisons_are_errors() {
         let a = vec![Vec3::ONE; 4];
         assert!(compare(&a, &a[..3], None).is_err());
-        assert!(compare(&a, &vec![Vec3::ZERO; 4], None).is_err());
+        assert!(compare(&a, &[Vec3::ZERO; 4], None).is_err());
         assert!(compare(&a, &a, Some(&[false; 4])).is_err());
         assert!(compare(&a, &a, Some(&[true; 3])).is_err());
         let mut nan = a.clone();

@@ -10,7 +10,7 @@ pub mod plot;
 pub mod reference;
 pub mod report;
 mod staging;
-mod summary;
+pub mod summary;
 
 /// The experiments of `rangewalk experiment`.
 #[derive(clap::Subcommand, Clone, Debug)]

@@ -339,16 +339,22 @@ mod end_to_end {
         assert_eq!(r.times, [0.0, 0.5, 1.0]);
         assert!(r.references.iter().all(|x| !x.reused));
 
+        // Path tracing the Cornell box is noisy (a small bright light, much
+        // of the image lit indirectly): at 32x32 even the 64-spp reference
+        // has a relative LRMS of about 0.3. The multipass image traces
+        // direct light only, so its noise must stay below one-sample path
+        // tracing.
+        let pt1 = r.convergence[0].error.lrms;
         for q in &r.qualities {
             assert_eq!(q.frames.len(), 3);
             // The boxes move: the decomposition solves at both ends at least.
             assert!(q.solves.len() >= 2, "q = {}: {:?}", q.quality, q.solves);
             assert!(q.simplify.final_surfaces > 0);
             for f in &q.frames {
-                assert!(f.error.lrms.is_finite() && f.error.lrms < 0.6, "{f:?}");
-                // Indirect light is a large part of the Cornell box; a
-                // renderer that lost it would be far darker than this.
-                assert!(f.error.bias.abs() < 0.15, "q = {}: {f:?}", q.quality);
+                assert!(f.error.lrms < pt1, "{f:?} against {pt1} at 1 spp");
+                // Indirect light is a large part of the Cornell box: a
+                // renderer that lost it is 23% too dark.
+                assert!(f.error.bias.abs() < 0.12, "q = {}: {f:?}", q.quality);
                 assert_eq!(f.flip.is_some(), !a.no_flip);
             }
         }

@@ -246,6 +246,13 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
         .map(|r| r.total_s() / times.len() as f64)
         .collect();
     let max_spp = (args.reference_spp / 4).max(1);
+    let target = Target {
+        seconds: budgets.iter().copied().fold(0.0, f64::max),
+        lrms: runs
+            .iter()
+            .map(|r| r.frames[preview_frame].error.lrms)
+            .fold(f64::INFINITY, f64::min),
+    };
     let convergence = convergence(
         &scene,
         engine.as_mut(),
@@ -253,7 +260,7 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
         times[preview_frame],
         refs[preview_frame],
         max_spp,
-        budgets.iter().copied().fold(0.0, f64::max),
+        target,
     )?;
     let mut equal_time: Vec<PathTracerRun> = Vec::new();
     let mut by_spp: HashMap<u32, usize> = HashMap::new();
@@ -467,9 +474,18 @@ fn path_tracer_run(
     })
 }
 
+/// Where the path tracer's convergence curve may stop: past the largest
+/// cost per frame and below the smallest error of the qualities measured,
+/// so that the plot shows where (and whether) it crosses them.
+#[derive(Clone, Copy, Debug)]
+struct Target {
+    seconds: f64,
+    lrms: f64,
+}
+
 /// The path tracer's error on one frame at 1, 2, 4, ... samples per pixel,
-/// up to `max_spp` or until a render takes twice `budget` (by then the
-/// curve has passed every quality's cost).
+/// up to `max_spp` or until it has passed `target` in time (twice over)
+/// and in error.
 fn convergence(
     scene: &Scene,
     engine: &mut dyn InstancedEngine,
@@ -477,7 +493,7 @@ fn convergence(
     t: f32,
     reference: &[Vec3],
     max_spp: u32,
-    budget: f64,
+    target: Target,
 ) -> Result<Vec<ConvergencePoint>> {
     let mut points = Vec::new();
     let mut spp = 1;
@@ -494,7 +510,7 @@ fn convergence(
             seconds,
             error,
         });
-        if spp >= max_spp || seconds > 2.0 * budget {
+        if spp >= max_spp || (seconds > 2.0 * target.seconds && error.lrms < target.lrms) {
             return Ok(points);
         }
         spp = (spp * 2).min(max_spp);

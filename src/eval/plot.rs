@@ -41,6 +41,20 @@ pub struct Plot<'a> {
 
 const SIZE: (u32, u32) = (900, 600);
 
+/// Tableau 10: distinguishable on white, and for most colour-blind readers.
+const COLORS: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+];
+
 /// Draws `plot` and writes it to `path` as an RGB PNG.
 pub fn write_png(path: impl AsRef<Path>, plot: &Plot) -> Result<()> {
     let path = path.as_ref();
@@ -99,16 +113,18 @@ where
     X: Ranged<ValueType = f64> + ValueFormatter<f64>,
     Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
 {
-    chart
-        .configure_mesh()
-        .x_desc(plot.x_label)
+    let mut mesh = chart.configure_mesh();
+    mesh.x_desc(plot.x_label)
         .y_desc(plot.y_label)
         .label_style(("sans-serif", 14))
-        .axis_desc_style(("sans-serif", 16))
-        .draw()
-        .map_err(|e| anyhow!("{e}"))?;
+        .axis_desc_style(("sans-serif", 16));
+    if plot.scale == Scale::LogLog {
+        mesh.x_label_formatter(&log_label)
+            .y_label_formatter(&log_label);
+    }
+    mesh.draw().map_err(|e| anyhow!("{e}"))?;
     for (i, s) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
+        let color = COLORS[i % COLORS.len()];
         chart
             .draw_series(LineSeries::new(
                 s.points.iter().copied(),
@@ -130,6 +146,20 @@ where
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
     Ok(())
+}
+
+/// Labels of a logarithmic axis at 1, 2 and 5 times powers of ten only:
+/// plotters marks every integer multiple, whose labels run into each other.
+fn log_label(v: &f64) -> String {
+    let mantissa = v / 10f64.powf(v.log10().floor());
+    if [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .any(|m| (mantissa - m).abs() < 1e-6)
+    {
+        super::report::sig(*v, 1)
+    } else {
+        String::new()
+    }
 }
 
 /// Axis ranges that hold every point with a margin; a sensible default
@@ -158,9 +188,16 @@ fn bounds(series: &[Series], scale: Scale) -> (Range<f64>, Range<f64>) {
         }
     };
     // A linear error axis starts at zero: errors are compared to none.
+    // The top quarter is left to the legend.
     let mut y = pad(y0, y1);
-    if scale == Scale::Linear && y0 >= 0.0 {
-        y.start = 0.0;
+    match scale {
+        Scale::Linear => {
+            if y0 >= 0.0 {
+                y.start = 0.0;
+            }
+            y.end += 0.35 * (y.end - y.start);
+        }
+        Scale::LogLog => y.end *= (y.end / y.start).powf(0.35),
     }
     (pad(x0, x1), y)
 }

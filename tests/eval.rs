@@ -288,6 +288,45 @@ fn report_files_hold_the_measurements() {
     assert!((reference[0] as i32 - 118).abs() <= 1, "{}", reference[0]);
 }
 
+fn experiment(args: &[&str], python: &str) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_rangewalk"))
+        .arg("experiment")
+        .args(args)
+        .env("RANGEWALK_PYTHON", python)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn command_line_errors_name_the_fault_and_write_nothing() {
+    let root = tempfile::tempdir().unwrap();
+    let out = root.path().join("x");
+    let out_s = out.to_str().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-box/scene.toml");
+    let cases: [(&[&str], &str); 4] = [
+        (
+            &["indirect", scene, "--quality", "0.3,1.5", "--out", out_s],
+            "quality 1.5",
+        ),
+        (&["indirect", scene, "--size", "0x8", "--out", out_s], "0x8"),
+        (
+            &["indirect", scene, "--camera", "nope", "--out", out_s],
+            "nope",
+        ),
+        // FLIP missing: the fix is named, and how to do without it.
+        (&["indirect", scene, "--out", out_s], "make deps"),
+    ];
+    for (args, expected) in cases {
+        let o = experiment(args, "/nonexistent/python");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?}");
+        assert!(err.contains(expected), "{args:?}: {err}");
+        assert!(!out.exists() && !root.path().join("x.partial").exists());
+    }
+    let o = experiment(&["indirect", scene, "--out", out_s], "/nonexistent/python");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--no-flip"));
+}
+
 /// The whole experiment on a tiny configuration: needs the radiosity stages
 /// and the multipass renderer.
 mod end_to_end {

@@ -184,7 +184,6 @@ fn results(out: PathBuf) -> IndirectResults {
         preview: vec![Vec3::splat(0.5); 16],
     };
     IndirectResults {
-        scene: args.scene.clone(),
         args,
         times: times.clone(),
         preview_frame: 1,

@@ -154,7 +154,6 @@ pub struct ConvergencePoint {
 /// The whole experiment's measurements.
 #[derive(Clone, Debug)]
 pub struct IndirectResults {
-    pub scene: PathBuf,
     pub args: IndirectArgs,
     pub times: Vec<f32>,
     pub preview_frame: usize,
@@ -185,10 +184,16 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
     let times = frame_times(&scene, args.frames);
     let preview_frame = times.len() / 2;
     let mut notes = Vec::new();
+    if scene.dropped_triangles > 0 {
+        notes.push(format!(
+            "{} zero-area triangle(s) dropped while loading the scene",
+            scene.dropped_triangles
+        ));
+    }
     if scene.is_static() {
         notes.push(
-            "static scene: one time sample; the temporal decomposition solves once and \
-             nothing is interpolated in time"
+            "static scene: one time sample, no temporal decomposition (one radiosity \
+             solve, nothing interpolated in time)"
                 .to_string(),
         );
     }
@@ -222,17 +227,17 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
         ));
     }
     let refs: Vec<&[Vec3]> = references.iter().map(|r| r.radiance.as_slice()).collect();
+    let ctx = Frames {
+        scene: &scene,
+        camera: &camera,
+        times: &times,
+        refs: &refs,
+        flip: flip.as_ref(),
+        preview_frame,
+    };
 
     let mut runs = Vec::new();
     for &q in &qualities {
-        let ctx = Frames {
-            scene: &scene,
-            camera: &camera,
-            times: &times,
-            refs: &refs,
-            flip: flip.as_ref(),
-            preview_frame,
-        };
         runs.push(
             run_quality(&ctx, engine.as_mut(), q, args.spp)
                 .with_context(|| format!("quality {}", q.get()))?,
@@ -274,14 +279,6 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
             "path tracer at {spp} spp ({:.3} s per frame, as quality {}):",
             budget, run.quality
         );
-        let ctx = Frames {
-            scene: &scene,
-            camera: &camera,
-            times: &times,
-            refs: &refs,
-            flip: flip.as_ref(),
-            preview_frame,
-        };
         let mut pt = path_tracer_run(&ctx, engine.as_mut(), spp)?;
         pt.matches.push(run.quality);
         pt.capped = capped;
@@ -290,7 +287,6 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
     }
 
     let mut results = IndirectResults {
-        scene: args.scene.clone(),
         args: args.clone(),
         times,
         preview_frame,

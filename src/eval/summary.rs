@@ -88,7 +88,7 @@ fn markdown(r: &IndirectResults) -> Result<String> {
     let a = &r.args;
     let mut md = String::new();
     let n = r.times.len();
-    let _ = writeln!(md, "# Indirect illumination: {}\n", r.scene.display());
+    let _ = writeln!(md, "# Indirect illumination: {}\n", r.args.scene.display());
     let _ = writeln!(
         md,
         "Camera `{}`, {}x{}, {n} frame(s) at t = {} s; ray engine {}; multipass renderer at {} spp; \

@@ -123,6 +123,23 @@ mod tests {
     }
 
     #[test]
+    fn errors_do_not_depend_on_the_light_level() {
+        let r = gradient(40);
+        let t: Vec<Vec3> = r
+            .iter()
+            .enumerate()
+            .map(|(i, c)| *c * (1.0 + 0.03 * (i % 5) as f32))
+            .collect();
+        let base = compare(&t, &r, None).unwrap();
+        for k in [1e-6f32, 1e8] {
+            let scale = |v: &[Vec3]| v.iter().map(|c| *c * k).collect::<Vec<_>>();
+            let e = compare(&scale(&t), &scale(&r), None).unwrap();
+            assert!((e.lrms - base.lrms).abs() < 1e-6 * base.lrms, "{k}: {e:?}");
+            assert!((e.bias - base.bias).abs() < 1e-6 * base.bias, "{k}: {e:?}");
+        }
+    }
+
+    #[test]
     fn mask_leaves_pixels_out() {
         let r = vec![Vec3::ONE; 4];
         let t = vec![Vec3::ONE, Vec3::ONE, Vec3::splat(100.0), Vec3::ONE];

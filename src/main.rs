@@ -91,6 +91,11 @@ enum Command {
         #[arg(long, value_enum, default_value_t = Backend::default_available())]
         backend: Backend,
     },
+    /// Measure a stage against path-traced references and write a report.
+    Experiment {
+        #[command(subcommand)]
+        experiment: rangewalk::eval::Experiment,
+    },
 }
 
 #[derive(clap::Args)]
@@ -320,6 +325,7 @@ fn run(cli: Cli) -> Result<()> {
             report_radiosity(&s, &simplified, &series);
             println!("bake written to {}", out.display());
         }
+        Command::Experiment { experiment } => rangewalk::eval::run(experiment)?,
     }
     Ok(())
 }

@@ -1,0 +1,170 @@
+//! An experiment's output folder, written under `<out>.partial` and renamed
+//! to `<out>` only when complete: a folder named `<out>` always holds a
+//! finished experiment. Cached references survive reruns and failures.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+
+/// The folder of cached references inside an output folder.
+pub const REFERENCE_DIR: &str = "reference";
+
+/// Files an experiment writes besides PNG images and the reference folder.
+const FILES: &[&str] = &["table.md", "frames.csv", "convergence.csv"];
+
+/// An output folder being written.
+pub struct Staging {
+    out: PathBuf,
+    partial: PathBuf,
+}
+
+impl Staging {
+    /// Prepares `<out>.partial`: emptied of an earlier attempt's results,
+    /// keeping (and adopting from a finished `<out>`) cached references.
+    /// Refuses folders holding anything an experiment does not write, so a
+    /// mistyped `--out` cannot replace unrelated files.
+    pub fn begin(out: &Path) -> Result<Staging> {
+        let name = out
+            .file_name()
+            .with_context(|| format!("--out {}: names no folder", out.display()))?;
+        let mut partial_name = name.to_os_string();
+        partial_name.push(".partial");
+        let partial = out.with_file_name(partial_name);
+        check_ours(out)?;
+        check_ours(&partial)?;
+        if partial.exists() {
+            for entry in entries(&partial)? {
+                if entry.file_name() != Some(REFERENCE_DIR.as_ref()) {
+                    std::fs::remove_file(&entry)
+                        .with_context(|| format!("removing {}", entry.display()))?;
+                }
+            }
+        }
+        let refs = partial.join(REFERENCE_DIR);
+        std::fs::create_dir_all(&refs).with_context(|| format!("creating {}", refs.display()))?;
+        let old_refs = out.join(REFERENCE_DIR);
+        if old_refs.is_dir() {
+            for entry in entries(&old_refs)? {
+                let to = refs.join(entry.file_name().expect("directory entries have names"));
+                if !to.exists() {
+                    std::fs::rename(&entry, &to).with_context(|| {
+                        format!("moving {} to {}", entry.display(), to.display())
+                    })?;
+                }
+            }
+        }
+        Ok(Staging {
+            out: out.into(),
+            partial,
+        })
+    }
+
+    /// Where results are written until [`Staging::finish`].
+    pub fn dir(&self) -> &Path {
+        &self.partial
+    }
+
+    /// Replaces `<out>` (an earlier experiment's output) with the finished
+    /// results.
+    pub fn finish(self) -> Result<PathBuf> {
+        if self.out.exists() {
+            check_ours(&self.out)?;
+            std::fs::remove_dir_all(&self.out)
+                .with_context(|| format!("removing the earlier {}", self.out.display()))?;
+        }
+        std::fs::rename(&self.partial, &self.out).with_context(|| {
+            format!(
+                "renaming {} to {}",
+                self.partial.display(),
+                self.out.display()
+            )
+        })?;
+        Ok(self.out)
+    }
+}
+
+/// Fails unless `dir` is absent or holds only what an experiment writes.
+fn check_ours(dir: &Path) -> Result<()> {
+    if !dir.exists() {
+        return Ok(());
+    }
+    if !dir.is_dir() {
+        bail!(
+            "{} exists and is not a folder; choose another --out",
+            dir.display()
+        );
+    }
+    for entry in entries(dir)? {
+        let name = entry.file_name().unwrap_or_default().to_string_lossy();
+        let ours = if entry.is_dir() {
+            name == REFERENCE_DIR
+        } else {
+            FILES.contains(&name.as_ref()) || name.ends_with(".png")
+        };
+        if !ours {
+            bail!(
+                "refusing to replace {}: it holds {}, which an experiment does not write; \
+                 choose another --out",
+                dir.display(),
+                entry.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+fn entries(dir: &Path) -> Result<Vec<PathBuf>> {
+    std::fs::read_dir(dir)
+        .with_context(|| format!("reading {}", dir.display()))?
+        .map(|e| {
+            Ok(e.with_context(|| format!("reading {}", dir.display()))?
+                .path())
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_appears_only_when_finished_and_references_survive() {
+        let root = tempfile::tempdir().unwrap();
+        let out = root.path().join("exp");
+        let s = Staging::begin(&out).unwrap();
+        std::fs::write(s.dir().join("table.md"), "one").unwrap();
+        std::fs::write(s.dir().join(REFERENCE_DIR).join("a.exr"), "ref").unwrap();
+        assert!(!out.exists());
+        assert_eq!(s.finish().unwrap(), out);
+        assert!(!root.path().join("exp.partial").exists());
+
+        // A second run that fails leaves the first output untouched; a
+        // third adopts the cached reference and replaces the results.
+        let s = Staging::begin(&out).unwrap();
+        assert!(s.dir().join(REFERENCE_DIR).join("a.exr").exists());
+        assert!(!s.dir().join("table.md").exists());
+        drop(s);
+        assert_eq!(
+            std::fs::read_to_string(out.join("table.md")).unwrap(),
+            "one"
+        );
+        let s = Staging::begin(&out).unwrap();
+        std::fs::write(s.dir().join("table.md"), "two").unwrap();
+        s.finish().unwrap();
+        assert_eq!(
+            std::fs::read_to_string(out.join("table.md")).unwrap(),
+            "two"
+        );
+        assert!(out.join(REFERENCE_DIR).join("a.exr").exists());
+    }
+
+    #[test]
+    fn foreign_folders_are_not_replaced() {
+        let root = tempfile::tempdir().unwrap();
+        std::fs::write(root.path().join("notes.txt"), "mine").unwrap();
+        let e = Staging::begin(root.path()).err().unwrap().to_string();
+        assert!(e.contains("notes.txt") && e.contains("refusing"), "{e}");
+        let file = root.path().join("notes.txt");
+        assert!(Staging::begin(&file).is_err());
+    }
+}

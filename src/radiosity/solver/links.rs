@@ -1,0 +1,340 @@
+//! Links between nodes: refinement by the transported-power oracle, then
+//! form factors and visibility for the accepted ones.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::hierarchy::{Hierarchy, Node};
+use super::linear::NodeRadiosity;
+use crate::accel::{offset_origin, Ray, RayEngine};
+use crate::radiosity::formfactor::{point_to_triangle_sides, receiver_points};
+
+/// How light gets from a link's source to its receiver.
+#[derive(Clone, Copy, Debug)]
+pub enum Transfer {
+    /// Between two surface elements: `f[a][b]` is the visible area-averaged
+    /// form factor from receiver side `a` to source side `b` (0 = front),
+    /// `vis` the visible fraction it includes.
+    Surfaces { f: [[f32; 2]; 2], vis: f32 },
+    /// From or to a cluster, treated as a point at its centre: `dir` is the
+    /// unit direction from receiver to source, `g` the visible fraction over
+    /// the squared distance.
+    Point { dir: Vec3, g: f32 },
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Link {
+    pub r: u32,
+    pub s: u32,
+    pub t: Transfer,
+}
+
+/// The part of a link's form factor counted as error on top of the
+/// kernel's spread, for partial visibility within the elements.
+const VISIBILITY_SHARE: f32 = 0.25;
+
+/// What the oracle makes of a pair of nodes.
+enum Verdict {
+    /// Nothing can pass (coplanar surfaces, back to back).
+    Drop,
+    Accept,
+    /// Too much power for one link, or a cluster too close for its
+    /// point approximation.
+    Split,
+}
+
+pub struct Refiner<'a> {
+    /// Source radiosity the oracle weighs links with; nodes created after
+    /// it was computed take their nearest ancestor's.
+    pub radiosity: &'a NodeRadiosity,
+    /// A link's error estimate may reach this much power (W).
+    pub max_error: f32,
+    /// Pairs to compute form factors for.
+    pub pending: Vec<(u32, u32)>,
+}
+
+impl Refiner<'_> {
+    /// Links `r` gathering from `s` (or, for `r == s`, everything within
+    /// `r`), down to where the oracle is satisfied.
+    pub fn refine(&mut self, h: &mut Hierarchy, r: u32, s: u32) {
+        if r == s {
+            if h.node(r).cluster {
+                let kids = h.split(r);
+                for &a in &kids {
+                    for &b in &kids {
+                        self.refine(h, a, b);
+                    }
+                }
+            }
+            return;
+        }
+        match self.verdict(h, r, s) {
+            Verdict::Drop => {}
+            Verdict::Accept => self.pending.push((r, s)),
+            Verdict::Split => match self.which(h, r, s) {
+                Some(true) => {
+                    for c in h.split(r) {
+                        self.refine(h, c, s);
+                    }
+                }
+                Some(false) => {
+                    for c in h.split(s) {
+                        self.refine(h, r, c);
+                    }
+                }
+                None => self.pending.push((r, s)),
+            },
+        }
+    }
+
+    /// Re-examines an existing link under new radiosities: `true` keeps it,
+    /// `false` means it was replaced by finer pending pairs.
+    pub fn recheck(&mut self, h: &mut Hierarchy, r: u32, s: u32) -> bool {
+        if !matches!(self.verdict(h, r, s), Verdict::Split) || self.which(h, r, s).is_none() {
+            return true;
+        }
+        match self.which(h, r, s) {
+            Some(true) => {
+                for c in h.split(r) {
+                    self.refine(h, c, s);
+                }
+            }
+            _ => {
+                for c in h.split(s) {
+                    self.refine(h, r, c);
+                }
+            }
+        }
+        false
+    }
+
+    /// Which end to split: `Some(true)` the receiver, `Some(false)` the
+    /// source, `None` neither can be.
+    fn which(&self, h: &Hierarchy, r: u32, s: u32) -> Option<bool> {
+        let (nr, ns) = (h.node(r), h.node(s));
+        // A cluster close to the other end must open up, whatever its size.
+        let overlap = nr.center.distance(ns.center) <= nr.radius + ns.radius;
+        if overlap && (nr.cluster || ns.cluster) {
+            return Some(if nr.cluster && ns.cluster {
+                nr.radius >= ns.radius
+            } else {
+                nr.cluster
+            });
+        }
+        match (h.splittable(r), h.splittable(s)) {
+            (true, true) => Some(nr.radius >= ns.radius),
+            (true, false) => Some(true),
+            (false, true) => Some(false),
+            (false, false) => None,
+        }
+    }
+
+    fn verdict(&self, h: &Hierarchy, r: u32, s: u32) -> Verdict {
+        let (nr, ns) = (h.node(r), h.node(s));
+        let power = if !nr.cluster && !ns.cluster {
+            if coplanar(nr, ns) {
+                return Verdict::Drop;
+            }
+            let b = self.surface_b(h, s);
+            let bmax = b[0].max(b[1]).max_element();
+            let (lo, hi) = ff_range(nr, ns);
+            // What piecewise-constant irradiance gets wrong over the
+            // receiver (the kernel's spread), plus a share of the
+            // magnitude for visibility a few rays do not resolve.
+            ((hi - lo) + VISIBILITY_SHARE * hi) * nr.area * bmax
+        } else {
+            let d = nr.center.distance(ns.center) - nr.radius - ns.radius;
+            if d <= 0.0 {
+                return Verdict::Split;
+            }
+            let i = self.max_intensity(h, s);
+            i / (d * d) * nr.area
+        };
+        if power > self.max_error {
+            Verdict::Split
+        } else if power > 0.0 {
+            Verdict::Accept
+        } else {
+            Verdict::Drop
+        }
+    }
+
+    fn known(&self, h: &Hierarchy, mut i: u32) -> u32 {
+        while i as usize >= self.radiosity.b.len() {
+            i = h.node(i).parent;
+        }
+        i
+    }
+
+    fn surface_b(&self, h: &Hierarchy, s: u32) -> [Vec3; 2] {
+        self.radiosity.b[self.known(h, s) as usize]
+    }
+
+    fn max_intensity(&self, h: &Hierarchy, s: u32) -> f32 {
+        let n = h.node(s);
+        if n.cluster {
+            let k = s as usize;
+            let p = self.radiosity.p[k];
+            let d = self.radiosity.dv[k];
+            let dl = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).powf(0.5);
+            ((p * 0.25 + dl * 0.5) / std::f32::consts::PI).max_element()
+        } else {
+            let b = self.surface_b(h, s);
+            n.area * b[0].max(b[1]).max_element() / std::f32::consts::PI
+        }
+    }
+}
+
+/// Whether the source lies in the receiver's plane (nothing passes).
+fn coplanar(r: &Node, s: &Node) -> bool {
+    let tol = 1e-5 * (r.radius + s.radius);
+    s.tri
+        .iter()
+        .all(|&p| (p - r.center).dot(r.normal).abs() <= tol)
+}
+
+/// The smallest and largest point form factor (either side) over the
+/// receiver: at its centroid and near its corners and edge midpoints, where
+/// an adjacent source is seen most.
+fn ff_range(r: &Node, s: &Node) -> (f32, f32) {
+    let c = r.center;
+    let [a, b, d] = r.tri;
+    let near = |p: Vec3| p + (c - p) * 0.05;
+    [
+        c,
+        near(a),
+        near(b),
+        near(d),
+        near(0.5 * (a + b)),
+        near(0.5 * (b + d)),
+        near(0.5 * (d + a)),
+    ]
+    .iter()
+    .map(|&x| {
+        let f = point_to_triangle_sides(x, r.normal, s.tri);
+        f[0].max(f[1])
+    })
+    .fold((f32::INFINITY, 0.0f32), |(lo, hi), f| (lo.min(f), hi.max(f)))
+}
+
+/// Form factors and visibility of `pairs`, traced in batches.
+pub fn compute(
+    h: &Hierarchy,
+    pairs: &[(u32, u32)],
+    engine: &dyn RayEngine,
+    rays_per_link: usize,
+) -> (Vec<Link>, u64) {
+    let out: Vec<(Vec<Link>, u64)> = pairs
+        .par_chunks(128)
+        .map(|chunk| {
+            let mut rays = Vec::with_capacity(chunk.len() * rays_per_link);
+            for (k, &(r, s)) in chunk.iter().enumerate() {
+                let seed = hash3(r, s, k as u32);
+                for j in 0..rays_per_link {
+                    rays.push(shadow_ray(h, r, s, seed, j, rays_per_link));
+                }
+            }
+            let mut blocked = vec![false; rays.len()];
+            engine.occluded_batch(&rays, &mut blocked);
+            let mut links = Vec::with_capacity(chunk.len());
+            for (k, &(r, s)) in chunk.iter().enumerate() {
+                let b = &blocked[k * rays_per_link..(k + 1) * rays_per_link];
+                let vis = b.iter().filter(|&&x| !x).count() as f32 / rays_per_link as f32;
+                if vis == 0.0 {
+                    continue;
+                }
+                let t = transfer(h, r, s, vis);
+                links.push(Link { r, s, t });
+            }
+            (links, rays.len() as u64)
+        })
+        .collect();
+    let rays = out.iter().map(|o| o.1).sum();
+    (out.into_iter().flat_map(|o| o.0).collect(), rays)
+}
+
+fn transfer(h: &Hierarchy, r: u32, s: u32, vis: f32) -> Transfer {
+    let (nr, ns) = (h.node(r), h.node(s));
+    if nr.cluster || ns.cluster {
+        let d = ns.center - nr.center;
+        let d2 = d.length_squared();
+        return Transfer::Point {
+            dir: d / d2.sqrt(),
+            g: vis / d2,
+        };
+    }
+    // Close pairs vary fast over the receiver: average over more points.
+    let near = nr.center.distance(ns.center) < 2.0 * (nr.radius + ns.radius);
+    let mut pts = Vec::with_capacity(16);
+    receiver_points(nr.tri, if near { 2 } else { 1 }, &mut pts);
+    let sn = ns.normal;
+    let mut f = [[0.0f32; 2]; 2];
+    for &x in &pts {
+        let sides = point_to_triangle_sides(x, nr.normal, ns.tri);
+        // x sees the source's front when it lies in front of its plane.
+        let b = usize::from((x - ns.tri[0]).dot(sn) < 0.0);
+        f[0][b] += sides[0];
+        f[1][b] += sides[1];
+    }
+    let w = vis / pts.len() as f32;
+    Transfer::Surfaces {
+        f: f.map(|row| row.map(|v| v * w)),
+        vis,
+    }
+}
+
+/// The j-th of n shadow rays between a point of `r` and a point of `s`,
+/// ending just short of `s` so that neither end counts as a blocker.
+fn shadow_ray(h: &Hierarchy, r: u32, s: u32, seed: u32, j: usize, n: usize) -> Ray {
+    let (pr, nr) = sample_point(h, r, seed, j, n);
+    let (ps, ns) = sample_point(h, s, seed ^ 0x9e37_79b9, j, n);
+    let a = offset_origin(pr, nr, ps - pr);
+    let b = offset_origin(ps, ns, pr - ps);
+    Ray::segment(a, b - a, 1.0)
+}
+
+/// A point on the surface of node `i` and the normal there: stratified over
+/// a triangle, or on an area-chosen patch of a cluster.
+fn sample_point(h: &Hierarchy, mut i: u32, seed: u32, j: usize, n: usize) -> (Vec3, Vec3) {
+    let mut u = (j as f32 + unit(hash3(seed, j as u32, 1))) / n as f32;
+    while h.node(i).cluster {
+        let kids = &h.node(i).children;
+        let total: f32 = kids.iter().map(|&c| h.node(c).area).sum();
+        let mut pick = u * total;
+        let mut next = kids[kids.len() - 1];
+        for &c in kids {
+            let a = h.node(c).area;
+            if pick < a {
+                u = (pick / a).clamp(0.0, 0.999_999);
+                next = c;
+                break;
+            }
+            pick -= a;
+        }
+        i = next;
+    }
+    let node = h.node(i);
+    let (mut a, mut b) = (u, unit(hash3(seed, j as u32, 2)));
+    if a + b > 1.0 {
+        (a, b) = (1.0 - a, 1.0 - b);
+    }
+    let [p0, p1, p2] = node.tri;
+    (p0 + (p1 - p0) * a + (p2 - p0) * b, node.normal)
+}
+
+pub fn hash3(a: u32, b: u32, c: u32) -> u32 {
+    let mut x = a
+        .wrapping_mul(0x8da6_b343)
+        .wrapping_add(b.wrapping_mul(0xd816_3841))
+        .wrapping_add(c.wrapping_mul(0xcb1a_b31f));
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^ (x >> 16)
+}
+
+/// A number in [0, 1) from a hash.
+pub fn unit(x: u32) -> f32 {
+    (x >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+}

@@ -91,7 +91,11 @@ fn form_factors_of_unit_squares_match_closed_forms() {
     let sq = |a: Vec3, b: Vec3, c: Vec3, d: Vec3| [[a, b, c], [a, c, d]];
     let avg = |r: [[Vec3; 3]; 2], s: [[Vec3; 3]; 2]| -> f32 {
         r.iter()
-            .map(|&rt| s.iter().map(|&st| triangle_to_triangle(rt, st, 4)).sum::<f32>())
+            .map(|&rt| {
+                s.iter()
+                    .map(|&st| triangle_to_triangle(rt, st, 4))
+                    .sum::<f32>()
+            })
             .sum::<f32>()
             / 2.0
     };
@@ -102,17 +106,15 @@ fn form_factors_of_unit_squares_match_closed_forms() {
         Vec3::new(1.0, 1.0, 1.0),
         Vec3::new(0.0, 1.0, 1.0),
     );
-    let wall = sq(
-        Vec3::ZERO,
-        Vec3::X,
-        Vec3::new(1.0, 1.0, 0.0),
-        Vec3::Y,
-    );
+    let wall = sq(Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y);
     let parallel = avg(floor, above);
     let perpendicular = avg(floor, wall);
     println!("parallel {parallel}, perpendicular {perpendicular}");
     assert!((parallel / 0.19982 - 1.0).abs() < 0.01, "{parallel}");
-    assert!((perpendicular / 0.20004 - 1.0).abs() < 0.01, "{perpendicular}");
+    assert!(
+        (perpendicular / 0.20004 - 1.0).abs() < 0.01,
+        "{perpendicular}"
+    );
 }
 
 #[test]
@@ -128,3 +130,15 @@ fn debug_furnace() {
     }
 }
 
+#[test]
+fn debug_cornell() {
+    let scene = bundled("cornell-box");
+    for q in [0.3, 0.6, 0.9] {
+        let sol = run(&scene, q);
+        println!("q {q} {:?}", sol.stats);
+        let s = Simplified::whole(&scene);
+        for (i, r) in s.records.iter().enumerate().take(8) {
+            println!("{i} {} {} {}", r.position, sol.indirect[i], sol.direct[i]);
+        }
+    }
+}

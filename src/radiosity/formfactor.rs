@@ -102,10 +102,16 @@ pub fn point_to_polygon(x: Vec3, n: Vec3, poly: &Polygon) -> f32 {
 /// side of the receiver: `[front (+n), back (-n)]`.
 pub fn point_to_triangle_sides(x: Vec3, n: Vec3, src: [Vec3; 3]) -> [f32; 2] {
     let poly = Polygon::triangle(src);
-    [
-        point_to_polygon(x, n, &poly.clip_above(x, n)),
-        point_to_polygon(x, -n, &poly.clip_above(x, -n)),
-    ]
+    let d = src.map(|v| (v - x).dot(n));
+    // A side whose half-space holds no corner sees nothing: skip its clip.
+    let side = |sign: f32| {
+        if d.iter().any(|&di| di * sign > 0.0) {
+            point_to_polygon(x, n * sign, &poly.clip_above(x, n * sign))
+        } else {
+            0.0
+        }
+    };
+    [side(1.0), side(-1.0)]
 }
 
 /// Interior points of `t` that split it into equal areas: the centroids of
@@ -131,7 +137,9 @@ pub fn subdivide([a, b, c]: [Vec3; 3]) -> [[Vec3; 3]; 4] {
 /// (both sides of the receiver together, no occlusion), from `4^level`
 /// receiver points.
 pub fn triangle_to_triangle(recv: [Vec3; 3], src: [Vec3; 3], level: u32) -> f32 {
-    let n = (recv[1] - recv[0]).cross(recv[2] - recv[0]).normalize_or_zero();
+    let n = (recv[1] - recv[0])
+        .cross(recv[2] - recv[0])
+        .normalize_or_zero();
     let mut pts = Vec::new();
     receiver_points(recv, level, &mut pts);
     let sum: f32 = pts

@@ -65,7 +65,9 @@ pub struct Operator<'a> {
 }
 
 impl<'a> Operator<'a> {
-    pub fn new(h: &'a Hierarchy, mut links: Vec<Link>) -> Self {
+    /// `corrected`: whether to compute the leaves' coverage factors (only
+    /// the final round needs them; earlier rounds only steer refinement).
+    pub fn new(h: &'a Hierarchy, mut links: Vec<Link>, corrected: bool) -> Self {
         links.sort_unstable_by_key(|l| (l.r, l.s));
         let mut groups = Vec::new();
         let mut start = 0;
@@ -85,10 +87,14 @@ impl<'a> Operator<'a> {
         for &(r, a, b) in &groups {
             range[r as usize] = (a, b);
         }
-        let coverage = leaves
-            .par_iter()
-            .map(|&l| coverage(h, &links, &range, l))
-            .collect();
+        let coverage = if corrected {
+            leaves
+                .par_iter()
+                .map(|&l| coverage(h, &links, &range, l))
+                .collect()
+        } else {
+            vec![[1.0; 2]; leaves.len()]
+        };
         Self {
             h,
             links,
@@ -241,9 +247,7 @@ impl<'a> Operator<'a> {
         u.iter()
             .zip(v)
             .zip(&self.area)
-            .map(|((a, b), &w)| {
-                (a[0] * b[0] + a[1] * b[1]).as_dvec3() * w
-            })
+            .map(|((a, b), &w)| (a[0] * b[0] + a[1] * b[1]).as_dvec3() * w)
             .sum()
     }
 }
@@ -381,6 +385,12 @@ fn combine(u: &Field, v: &Field, c: DVec3) -> Field {
 /// Per-channel quotient, zero where the denominator vanishes (a channel
 /// that has converged or carries no light).
 fn div(a: DVec3, b: DVec3) -> DVec3 {
-    let f = |a: f64, b: f64| if b != 0.0 && (a / b).is_finite() { a / b } else { 0.0 };
+    let f = |a: f64, b: f64| {
+        if b != 0.0 && (a / b).is_finite() {
+            a / b
+        } else {
+            0.0
+        }
+    };
     DVec3::new(f(a.x, b.x), f(a.y, b.y), f(a.z, b.z))
 }

@@ -87,12 +87,20 @@ impl Refiner<'_> {
         }
     }
 
-    /// Re-examines an existing link under new radiosities: `true` keeps it,
-    /// `false` means it was replaced by finer pending pairs.
-    pub fn recheck(&mut self, h: &mut Hierarchy, r: u32, s: u32) -> bool {
-        if !matches!(self.verdict(h, r, s), Verdict::Split) || self.which(h, r, s).is_none() {
-            return true;
-        }
+    /// Which of `links` the oracle would split under the current
+    /// radiosities; judged in parallel, since most stay.
+    pub fn to_split(&self, h: &Hierarchy, links: &[Link]) -> Vec<bool> {
+        links
+            .par_iter()
+            .map(|l| {
+                matches!(self.verdict(h, l.r, l.s), Verdict::Split)
+                    && self.which(h, l.r, l.s).is_some()
+            })
+            .collect()
+    }
+
+    /// Replaces an existing link by finer pending pairs.
+    pub fn split_link(&mut self, h: &mut Hierarchy, r: u32, s: u32) {
         match self.which(h, r, s) {
             Some(true) => {
                 for c in h.split(r) {
@@ -105,7 +113,6 @@ impl Refiner<'_> {
                 }
             }
         }
-        false
     }
 
     /// Which end to split: `Some(true)` the receiver, `Some(false)` the
@@ -138,6 +145,9 @@ impl Refiner<'_> {
             let b = self.surface_b(h, s);
             let bmax = b[0].max(b[1]).max_element();
             let (lo, hi) = ff_range(nr, ns);
+            if !(hi > 0.0) {
+                return Verdict::Drop;
+            }
             // What piecewise-constant irradiance gets wrong over the
             // receiver (the kernel's spread), plus a share of the
             // magnitude for visibility a few rays do not resolve.
@@ -150,12 +160,12 @@ impl Refiner<'_> {
             let i = self.max_intensity(h, s);
             i / (d * d) * nr.area
         };
+        // Links that carry nothing yet stay, coarse, for later rounds to
+        // weigh with the light that reaches their source by then.
         if power > self.max_error {
             Verdict::Split
-        } else if power > 0.0 {
-            Verdict::Accept
         } else {
-            Verdict::Drop
+            Verdict::Accept
         }
     }
 
@@ -194,27 +204,21 @@ fn coplanar(r: &Node, s: &Node) -> bool {
 }
 
 /// The smallest and largest point form factor (either side) over the
-/// receiver: at its centroid and near its corners and edge midpoints, where
-/// an adjacent source is seen most.
+/// receiver: at its centroid and near its corners, where an adjacent source
+/// is seen most.
 fn ff_range(r: &Node, s: &Node) -> (f32, f32) {
     let c = r.center;
     let [a, b, d] = r.tri;
     let near = |p: Vec3| p + (c - p) * 0.05;
-    [
-        c,
-        near(a),
-        near(b),
-        near(d),
-        near(0.5 * (a + b)),
-        near(0.5 * (b + d)),
-        near(0.5 * (d + a)),
-    ]
-    .iter()
-    .map(|&x| {
-        let f = point_to_triangle_sides(x, r.normal, s.tri);
-        f[0].max(f[1])
-    })
-    .fold((f32::INFINITY, 0.0f32), |(lo, hi), f| (lo.min(f), hi.max(f)))
+    [c, near(a), near(b), near(d)]
+        .iter()
+        .map(|&x| {
+            let f = point_to_triangle_sides(x, r.normal, s.tri);
+            f[0].max(f[1])
+        })
+        .fold((f32::INFINITY, 0.0f32), |(lo, hi), f| {
+            (lo.min(f), hi.max(f))
+        })
 }
 
 /// Form factors and visibility of `pairs`, traced in batches.

@@ -106,7 +106,7 @@ pub fn solve(
         stats.shadow_rays += extend_direct(&h, &mut direct_nodes, &scene.lights, engine, &params);
         let old_leaves = h.leaves();
         let oracle = {
-            let op = Operator::new(&h, Vec::new());
+            let op = Operator::new(&h, Vec::new(), false);
             let src: Field = op
                 .leaves
                 .iter()
@@ -136,15 +136,28 @@ pub fn solve(
             let root = h.root;
             refiner.refine(&mut h, root, root);
         } else {
-            links.retain(|l| refiner.recheck(&mut h, l.r, l.s));
+            let split = refiner.to_split(&h, &links);
+            let mut kept = Vec::with_capacity(links.len());
+            for (l, split) in links.drain(..).zip(split) {
+                if split {
+                    refiner.split_link(&mut h, l.r, l.s);
+                } else {
+                    kept.push(l);
+                }
+            }
+            links = kept;
         }
         let pending = std::mem::take(&mut refiner.pending);
+        let t0 = Instant::now();
         let (new, rays) = links::compute(&h, &pending, engine, params.rays_per_link);
         stats.shadow_rays += rays;
         links.extend(new);
+        let t1 = Instant::now();
         stats.shadow_rays += extend_direct(&h, &mut direct_nodes, &scene.lights, engine, &params);
 
-        let op = Operator::new(&h, std::mem::take(&mut links));
+        let last = round + 1 == params.rounds;
+        let op = Operator::new(&h, std::mem::take(&mut links), last);
+        let t2 = Instant::now();
         let guess = solution
             .take()
             .map(|x| inherit(&h, &old_leaves, &x, &op.leaves))
@@ -164,8 +177,16 @@ pub fn solve(
             params.max_iterations,
         );
         stats.iterations += solved.iterations;
+        eprintln!(
+            "TIME round {round}: refine {:?} links {:?} (pending {}) op {:?} solve {:?}",
+            t0 - start,
+            t1 - t0,
+            pending.len(),
+            t2 - t1,
+            t2.elapsed()
+        );
         stats.residual = solved.residual;
-        if round + 1 == params.rounds {
+        if last {
             let indirect = op.apply(&solved.x);
             let index = leaf_index(&h, &op.leaves);
             let (ind, dir) =

@@ -271,7 +271,7 @@ fn coverage(h: &Hierarchy, links: &[Link], range: &[(usize, usize)], leaf: u32) 
             if let Transfer::Surfaces { f, vis } = l.t {
                 let p = point_to_triangle_sides(x, n, h.node(l.s).tri);
                 for side in 0..2 {
-                    seen[side] += vis * p[side];
+                    seen[side] += vis[side] * p[side];
                     given[side] += f[side][0] + f[side][1];
                 }
             }

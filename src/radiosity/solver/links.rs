@@ -14,8 +14,8 @@ use crate::radiosity::formfactor::{point_to_triangle_sides, receiver_points};
 pub enum Transfer {
     /// Between two surface elements: `f[a][b]` is the visible area-averaged
     /// form factor from receiver side `a` to source side `b` (0 = front),
-    /// `vis` the visible fraction it includes.
-    Surfaces { f: [[f32; 2]; 2], vis: f32 },
+    /// `vis` the visible fraction per receiver side that it includes.
+    Surfaces { f: [[f32; 2]; 2], vis: [f32; 2] },
     /// From or to a cluster, treated as a point at its centre: `dir` is the
     /// unit direction from receiver to source, `g` the visible fraction over
     /// the squared distance.
@@ -32,6 +32,10 @@ pub struct Link {
 /// The part of a link's form factor counted as error on top of the
 /// kernel's spread, for partial visibility within the elements.
 const VISIBILITY_SHARE: f32 = 0.25;
+
+/// The same for a link whose rays found it partly hidden (see
+/// `Refiner::verdict`).
+const PARTIAL_SHARE: f32 = 1.0;
 
 /// What the oracle makes of a pair of nodes.
 enum Verdict {
@@ -68,7 +72,7 @@ impl Refiner<'_> {
             }
             return;
         }
-        match self.verdict(h, r, s) {
+        match self.verdict(h, r, s, false) {
             Verdict::Drop => {}
             Verdict::Accept => self.pending.push((r, s)),
             Verdict::Split => match self.which(h, r, s) {
@@ -93,7 +97,11 @@ impl Refiner<'_> {
         links
             .par_iter()
             .map(|l| {
-                matches!(self.verdict(h, l.r, l.s), Verdict::Split)
+                let partial = match l.t {
+                    Transfer::Surfaces { vis, .. } => vis.iter().any(|&v| v > 0.0 && v < 1.0),
+                    Transfer::Point { .. } => false,
+                };
+                matches!(self.verdict(h, l.r, l.s, partial), Verdict::Split)
                     && self.which(h, l.r, l.s).is_some()
             })
             .collect()
@@ -136,7 +144,11 @@ impl Refiner<'_> {
         }
     }
 
-    fn verdict(&self, h: &Hierarchy, r: u32, s: u32) -> Verdict {
+    /// `partial`: whether the link's rays found it partly hidden. Its two
+    /// ends then average lit and shadowed parts, and multiplying their
+    /// averages counts the shadow twice (a floor element half under a box
+    /// is both half dark and half hidden), so the whole magnitude is error.
+    fn verdict(&self, h: &Hierarchy, r: u32, s: u32, partial: bool) -> Verdict {
         let (nr, ns) = (h.node(r), h.node(s));
         let power = if !nr.cluster && !ns.cluster {
             if coplanar(nr, ns) {
@@ -151,7 +163,12 @@ impl Refiner<'_> {
             // What piecewise-constant irradiance gets wrong over the
             // receiver (the kernel's spread), plus a share of the
             // magnitude for visibility a few rays do not resolve.
-            ((hi - lo) + VISIBILITY_SHARE * hi) * nr.area * bmax
+            let share = if partial {
+                PARTIAL_SHARE
+            } else {
+                VISIBILITY_SHARE
+            };
+            ((hi - lo) + share * hi) * nr.area * bmax
         } else {
             let d = nr.center.distance(ns.center) - nr.radius - ns.radius;
             if d <= 0.0 {
@@ -232,22 +249,25 @@ pub fn compute(
         .par_chunks(128)
         .map(|chunk| {
             let mut rays = Vec::with_capacity(chunk.len() * rays_per_link);
-            for (k, &(r, s)) in chunk.iter().enumerate() {
-                let seed = hash3(r, s, k as u32);
+            let mut sides = Vec::with_capacity(rays.capacity());
+            for &(r, s) in chunk {
+                let seed = hash3(r, s, 0);
                 for j in 0..rays_per_link {
-                    rays.push(shadow_ray(h, r, s, seed, j, rays_per_link));
+                    let (ray, side) = shadow_ray(h, r, s, seed, j, rays_per_link);
+                    rays.push(ray);
+                    sides.push(side);
                 }
             }
             let mut blocked = vec![false; rays.len()];
             engine.occluded_batch(&rays, &mut blocked);
             let mut links = Vec::with_capacity(chunk.len());
             for (k, &(r, s)) in chunk.iter().enumerate() {
-                let b = &blocked[k * rays_per_link..(k + 1) * rays_per_link];
-                let vis = b.iter().filter(|&&x| !x).count() as f32 / rays_per_link as f32;
-                if vis == 0.0 {
+                let span = k * rays_per_link..(k + 1) * rays_per_link;
+                let vis = Visibility::count(&blocked[span.clone()], &sides[span]);
+                if vis.overall == 0.0 {
                     continue;
                 }
-                let t = transfer(h, r, s, vis);
+                let t = transfer(h, r, s, &vis);
                 links.push(Link { r, s, t });
             }
             (links, rays.len() as u64)
@@ -257,14 +277,47 @@ pub fn compute(
     (out.into_iter().flat_map(|o| o.0).collect(), rays)
 }
 
-fn transfer(h: &Hierarchy, r: u32, s: u32, vis: f32) -> Transfer {
+/// Visible fractions of a link's rays, per pair of sides they join: a
+/// receiver side only sees the part of the source in its half-space, so
+/// rays to the other half say nothing about it (a box standing on the
+/// floor hides the light from its inner side, not from its outer one).
+struct Visibility {
+    overall: f32,
+    /// `[receiver side][source side]`.
+    pair: [[f32; 2]; 2],
+    /// Per receiver side, over both source sides.
+    side: [f32; 2],
+}
+
+impl Visibility {
+    fn count(blocked: &[bool], sides: &[(usize, usize)]) -> Self {
+        let mut open = [[0u32; 2]; 2];
+        let mut all = [[0u32; 2]; 2];
+        for (&b, &(a, s)) in blocked.iter().zip(sides) {
+            all[a][s] += 1;
+            open[a][s] += u32::from(!b);
+        }
+        let frac =
+            |o: u32, n: u32, fallback: f32| if n > 0 { o as f32 / n as f32 } else { fallback };
+        let overall = frac(open.iter().flatten().sum(), all.iter().flatten().sum(), 0.0);
+        let side = [0, 1].map(|a| frac(open[a][0] + open[a][1], all[a][0] + all[a][1], overall));
+        let pair = [0, 1].map(|a| [0, 1].map(|b| frac(open[a][b], all[a][b], side[a])));
+        Self {
+            overall,
+            pair,
+            side,
+        }
+    }
+}
+
+fn transfer(h: &Hierarchy, r: u32, s: u32, vis: &Visibility) -> Transfer {
     let (nr, ns) = (h.node(r), h.node(s));
     if nr.cluster || ns.cluster {
         let d = ns.center - nr.center;
         let d2 = d.length_squared();
         return Transfer::Point {
             dir: d / d2.sqrt(),
-            g: vis / d2,
+            g: vis.overall / d2,
         };
     }
     // Close pairs vary fast over the receiver: average over more points.
@@ -280,21 +333,35 @@ fn transfer(h: &Hierarchy, r: u32, s: u32, vis: f32) -> Transfer {
         f[0][b] += sides[0];
         f[1][b] += sides[1];
     }
-    let w = vis / pts.len() as f32;
-    Transfer::Surfaces {
-        f: f.map(|row| row.map(|v| v * w)),
-        vis,
+    let w = 1.0 / pts.len() as f32;
+    for (a, row) in f.iter_mut().enumerate() {
+        for (b, v) in row.iter_mut().enumerate() {
+            *v *= w * vis.pair[a][b];
+        }
     }
+    Transfer::Surfaces { f, vis: vis.side }
 }
 
 /// The j-th of n shadow rays between a point of `r` and a point of `s`,
-/// ending just short of `s` so that neither end counts as a blocker.
-fn shadow_ray(h: &Hierarchy, r: u32, s: u32, seed: u32, j: usize, n: usize) -> Ray {
+/// ending just short of `s` so that neither end counts as a blocker, and
+/// the sides `(receiver, source)` it leaves and reaches (0 = front).
+fn shadow_ray(
+    h: &Hierarchy,
+    r: u32,
+    s: u32,
+    seed: u32,
+    j: usize,
+    n: usize,
+) -> (Ray, (usize, usize)) {
     let (pr, nr) = sample_point(h, r, seed, j, n);
     let (ps, ns) = sample_point(h, s, seed ^ 0x9e37_79b9, j, n);
     let a = offset_origin(pr, nr, ps - pr);
     let b = offset_origin(ps, ns, pr - ps);
-    Ray::segment(a, b - a, 1.0)
+    let sides = (
+        usize::from((ps - pr).dot(nr) < 0.0),
+        usize::from((pr - ps).dot(ns) < 0.0),
+    );
+    (Ray::segment(a, b - a, 1.0), sides)
 }
 
 /// A point on the surface of node `i` and the normal there: stratified over

@@ -148,16 +148,13 @@ pub fn solve(
             links = kept;
         }
         let pending = std::mem::take(&mut refiner.pending);
-        let t0 = Instant::now();
         let (new, rays) = links::compute(&h, &pending, engine, params.rays_per_link);
         stats.shadow_rays += rays;
         links.extend(new);
-        let t1 = Instant::now();
         stats.shadow_rays += extend_direct(&h, &mut direct_nodes, &scene.lights, engine, &params);
 
         let last = round + 1 == params.rounds;
         let op = Operator::new(&h, std::mem::take(&mut links), last);
-        let t2 = Instant::now();
         let guess = solution
             .take()
             .map(|x| inherit(&h, &old_leaves, &x, &op.leaves))
@@ -177,14 +174,6 @@ pub fn solve(
             params.max_iterations,
         );
         stats.iterations += solved.iterations;
-        eprintln!(
-            "TIME round {round}: refine {:?} links {:?} (pending {}) op {:?} solve {:?}",
-            t0 - start,
-            t1 - t0,
-            pending.len(),
-            t2 - t1,
-            t2.elapsed()
-        );
         stats.residual = solved.residual;
         if last {
             let indirect = op.apply(&solved.x);

@@ -65,9 +65,7 @@ pub struct Operator<'a> {
 }
 
 impl<'a> Operator<'a> {
-    /// `corrected`: whether to compute the leaves' coverage factors (only
-    /// the final round needs them; earlier rounds only steer refinement).
-    pub fn new(h: &'a Hierarchy, mut links: Vec<Link>, corrected: bool) -> Self {
+    pub fn new(h: &'a Hierarchy, mut links: Vec<Link>) -> Self {
         links.sort_unstable_by_key(|l| (l.r, l.s));
         let mut groups = Vec::new();
         let mut start = 0;
@@ -87,14 +85,13 @@ impl<'a> Operator<'a> {
         for &(r, a, b) in &groups {
             range[r as usize] = (a, b);
         }
-        let coverage = if corrected {
-            leaves
-                .par_iter()
-                .map(|&l| coverage(h, &links, &range, l))
-                .collect()
-        } else {
-            vec![[1.0; 2]; leaves.len()]
-        };
+        // Without the factors a closed room's corner leaves gather more than
+        // their whole hemisphere, and with reflectance near one the system
+        // stops being solvable.
+        let coverage = leaves
+            .par_iter()
+            .map(|&l| coverage(h, &links, &range, l))
+            .collect();
         Self {
             h,
             links,

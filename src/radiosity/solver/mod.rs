@@ -106,7 +106,7 @@ pub fn solve(
         stats.shadow_rays += extend_direct(&h, &mut direct_nodes, &scene.lights, engine, &params);
         let old_leaves = h.leaves();
         let oracle = {
-            let op = Operator::new(&h, Vec::new(), false);
+            let op = Operator::new(&h, Vec::new());
             let src: Field = op
                 .leaves
                 .iter()
@@ -124,8 +124,14 @@ pub fn solve(
             op.pull(&src)
         };
         let scene_power = oracle.p[h.root as usize].max_element();
-        if !(scene_power > 0.0 && scene_power.is_finite()) {
+        if scene_power == 0.0 {
             return Ok(empty(stats));
+        }
+        if !(scene_power > 0.0 && scene_power.is_finite()) {
+            bail!(
+                "radiosity at t = {time}: the solution diverged (scene power {scene_power}); \
+                 the transport operator gains energy somewhere"
+            );
         }
         let mut refiner = Refiner {
             radiosity: &oracle,
@@ -154,7 +160,7 @@ pub fn solve(
         stats.shadow_rays += extend_direct(&h, &mut direct_nodes, &scene.lights, engine, &params);
 
         let last = round + 1 == params.rounds;
-        let op = Operator::new(&h, std::mem::take(&mut links), last);
+        let op = Operator::new(&h, std::mem::take(&mut links));
         let guess = solution
             .take()
             .map(|x| inherit(&h, &old_leaves, &x, &op.leaves))

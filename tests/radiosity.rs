@@ -519,7 +519,7 @@ fn furnace_with_an_occluder_stays_uniform() {
                 .split_whitespace()
                 .map(|x| x.parse().unwrap())
                 .collect();
-            obj.push_str("f");
+            obj.push('f');
             for i in idx {
                 obj.push_str(&format!(" {}", i + 8));
             }

@@ -83,7 +83,7 @@ pub fn point_to_polygon(x: Vec3, n: Vec3, poly: &Polygon) -> f32 {
         let b = c[(i + 1) % c.len()] - x;
         let cross = a.cross(b);
         let len = cross.length();
-        if !(len > 0.0) || !len.is_finite() {
+        if len.is_nan() || len <= 0.0 || len.is_infinite() {
             continue;
         }
         let gamma = len.atan2(a.dot(b));

@@ -128,8 +128,8 @@ impl<'a> Operator<'a> {
                     let c = c as usize;
                     let (pc, dc) = (r.p[c], r.dv[c]);
                     r.p[k] += pc;
-                    for a in 0..3 {
-                        r.dv[k][a] += dc[a];
+                    for (d, c) in r.dv[k].iter_mut().zip(dc) {
+                        *d += c;
                     }
                 }
                 continue;

@@ -157,7 +157,7 @@ impl Refiner<'_> {
             let b = self.surface_b(h, s);
             let bmax = b[0].max(b[1]).max_element();
             let (lo, hi) = ff_range(nr, ns);
-            if !(hi > 0.0) {
+            if hi.is_nan() || hi <= 0.0 {
                 return Verdict::Drop;
             }
             // What piecewise-constant irradiance gets wrong over the

@@ -41,7 +41,7 @@ pub fn direct(
                             } => {
                                 let d = position - x;
                                 let d2 = d.length_squared();
-                                if !(d2 > 0.0) {
+                                if d2.is_nan() || d2 <= 0.0 {
                                     continue;
                                 }
                                 let cos = n.normal.dot(d) / d2.sqrt();

@@ -167,14 +167,15 @@ impl<'a> Operator<'a> {
                 let mut gv = [Vec3::ZERO; 3];
                 for l in &self.links[a..b] {
                     match l.t {
-                        Transfer::Surfaces { f, .. } => {
+                        Transfer::Surfaces { f, vis } => {
                             let bs = rad.b[l.s as usize];
-                            for (side, row) in f.iter().enumerate() {
-                                gs[side] += bs[0] * row[0] + bs[1] * row[1];
+                            for side in 0..2 {
+                                let (f, v) = (f[side], vis[side]);
+                                gs[side] += bs[0] * (f[0] * v[0]) + bs[1] * (f[1] * v[1]);
                             }
                         }
-                        Transfer::Point { dir, g } => {
-                            let e = rad.intensity(h, l.s, -dir) * g;
+                        Transfer::Point { dir, g, vis } => {
+                            let e = rad.intensity(h, l.s, -dir) * (g * vis);
                             if nr.cluster {
                                 gv[0] += e * dir.x;
                                 gv[1] += e * dir.y;
@@ -268,8 +269,13 @@ fn coverage(h: &Hierarchy, links: &[Link], range: &[(usize, usize)], leaf: u32) 
             if let Transfer::Surfaces { f, vis } = l.t {
                 let p = point_to_triangle_sides(x, n, h.node(l.s).tri);
                 for side in 0..2 {
-                    seen[side] += vis[side] * p[side];
-                    given[side] += f[side][0] + f[side][1];
+                    let (f, v) = (f[side], vis[side]);
+                    let visible = f[0] * v[0] + f[1] * v[1];
+                    let total = f[0] + f[1];
+                    if total > 0.0 {
+                        seen[side] += visible / total * p[side];
+                    }
+                    given[side] += visible;
                 }
             }
         }

@@ -12,14 +12,17 @@ use crate::radiosity::formfactor::{point_to_triangle_sides, receiver_points};
 /// How light gets from a link's source to its receiver.
 #[derive(Clone, Copy, Debug)]
 pub enum Transfer {
-    /// Between two surface elements: `f[a][b]` is the visible area-averaged
-    /// form factor from receiver side `a` to source side `b` (0 = front),
-    /// `vis` the visible fraction per receiver side that it includes.
-    Surfaces { f: [[f32; 2]; 2], vis: [f32; 2] },
+    /// Between two surface elements: `f[a][b]` is the unoccluded
+    /// area-averaged form factor from receiver side `a` to source side `b`
+    /// (0 = front), `vis[a][b]` its visible fraction.
+    Surfaces {
+        f: [[f32; 2]; 2],
+        vis: [[f32; 2]; 2],
+    },
     /// From or to a cluster, treated as a point at its centre: `dir` is the
-    /// unit direction from receiver to source, `g` the visible fraction over
-    /// the squared distance.
-    Point { dir: Vec3, g: f32 },
+    /// unit direction from receiver to source, `g` the inverse squared
+    /// distance, `vis` the visible fraction.
+    Point { dir: Vec3, g: f32, vis: f32 },
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -27,6 +30,30 @@ pub struct Link {
     pub r: u32,
     pub s: u32,
     pub t: Transfer,
+    /// First of the link's shadow-ray outcomes in the solve's sample list.
+    pub samples: u32,
+}
+
+/// One shadow ray's outcome, kept so that visibility can be re-weighed
+/// when the source's radiosity changes without tracing again.
+#[derive(Clone, Copy, Debug)]
+pub struct Sample {
+    /// The source leaf the ray ended on (at the time it was traced).
+    pub leaf: u32,
+    /// Receiver side and source side (0 = front).
+    pub sides: (u8, u8),
+    pub open: bool,
+}
+
+impl Transfer {
+    /// Whether the rays found the link partly hidden.
+    pub fn partial(&self) -> bool {
+        let part = |v: f32| v > 0.0 && v < 1.0;
+        match self {
+            Transfer::Surfaces { vis, .. } => vis.iter().flatten().any(|&v| part(v)),
+            Transfer::Point { vis, .. } => part(*vis),
+        }
+    }
 }
 
 /// The part of a link's form factor counted as error on top of the
@@ -97,11 +124,7 @@ impl Refiner<'_> {
         links
             .par_iter()
             .map(|l| {
-                let partial = match l.t {
-                    Transfer::Surfaces { vis, .. } => vis.iter().any(|&v| v > 0.0 && v < 1.0),
-                    Transfer::Point { .. } => false,
-                };
-                matches!(self.verdict(h, l.r, l.s, partial), Verdict::Split)
+                matches!(self.verdict(h, l.r, l.s, l.t.partial()), Verdict::Split)
                     && self.which(h, l.r, l.s).is_some()
             })
             .collect()
@@ -193,6 +216,11 @@ impl Refiner<'_> {
         i
     }
 
+    /// The weight a ray ending on `leaf`'s `side` gets in visible fractions.
+    pub fn weight(&self, h: &Hierarchy, leaf: u32, side: usize) -> f32 {
+        self.surface_b(h, leaf)[side].max_element()
+    }
+
     fn surface_b(&self, h: &Hierarchy, s: u32) -> [Vec3; 2] {
         self.radiosity.b[self.known(h, s) as usize]
     }
@@ -238,75 +266,126 @@ fn ff_range(r: &Node, s: &Node) -> (f32, f32) {
         })
 }
 
-/// Form factors and visibility of `pairs`, traced in batches.
+/// Form factors and visibility of `pairs`, traced in batches. Returns the
+/// links (whose `samples` index the returned samples, `rays` per link) and
+/// the rays traced. `weight(leaf, side)` is the source radiosity the
+/// visible fractions are weighed with (see [`reweigh`]).
 pub fn compute(
     h: &Hierarchy,
     pairs: &[(u32, u32)],
     engine: &dyn RayEngine,
-    rays_per_link: usize,
-) -> (Vec<Link>, u64) {
-    let out: Vec<(Vec<Link>, u64)> = pairs
+    rays: usize,
+    weight: &(dyn Fn(u32, usize) -> f32 + Sync),
+) -> (Vec<Link>, Vec<Sample>, u64) {
+    let out: Vec<(Vec<Link>, Vec<Sample>)> = pairs
         .par_chunks(128)
         .map(|chunk| {
-            let mut rays = Vec::with_capacity(chunk.len() * rays_per_link);
-            let mut sides = Vec::with_capacity(rays.capacity());
+            let mut batch = Vec::with_capacity(chunk.len() * rays);
+            let mut samples = Vec::with_capacity(batch.capacity());
             for &(r, s) in chunk {
                 let seed = hash3(r, s, 0);
-                for j in 0..rays_per_link {
-                    let (ray, side) = shadow_ray(h, r, s, seed, j, rays_per_link);
-                    rays.push(ray);
-                    sides.push(side);
+                for j in 0..rays {
+                    let (ray, sample) = shadow_ray(h, r, s, seed, j, rays);
+                    batch.push(ray);
+                    samples.push(sample);
                 }
             }
-            let mut blocked = vec![false; rays.len()];
-            engine.occluded_batch(&rays, &mut blocked);
+            let mut blocked = vec![false; batch.len()];
+            engine.occluded_batch(&batch, &mut blocked);
+            for (s, b) in samples.iter_mut().zip(blocked) {
+                s.open = !b;
+            }
             let mut links = Vec::with_capacity(chunk.len());
+            let mut kept = Vec::with_capacity(samples.len());
             for (k, &(r, s)) in chunk.iter().enumerate() {
-                let span = k * rays_per_link..(k + 1) * rays_per_link;
-                let vis = Visibility::count(&blocked[span.clone()], &sides[span]);
-                if vis.overall == 0.0 {
+                let mine = &samples[k * rays..(k + 1) * rays];
+                if !mine.iter().any(|s| s.open) {
                     continue;
                 }
-                let t = transfer(h, r, s, &vis);
-                links.push(Link { r, s, t });
+                let vis = Visibility::weighed(mine, weight);
+                let first = kept.len() as u32;
+                kept.extend_from_slice(mine);
+                links.push(Link {
+                    r,
+                    s,
+                    t: transfer(h, r, s, &vis),
+                    samples: first,
+                });
             }
-            (links, rays.len() as u64)
+            (links, kept)
         })
         .collect();
-    let rays = out.iter().map(|o| o.1).sum();
-    (out.into_iter().flat_map(|o| o.0).collect(), rays)
+    let mut links = Vec::new();
+    let mut samples = Vec::new();
+    for (l, s) in out {
+        let offset = samples.len() as u32;
+        links.extend(l.into_iter().map(|l| Link {
+            samples: l.samples + offset,
+            ..l
+        }));
+        samples.extend(s);
+    }
+    let traced = (pairs.len() * rays) as u64;
+    (links, samples, traced)
+}
+
+/// Visible fractions again, weighed with new source radiosities.
+pub fn reweigh(
+    links: &mut [Link],
+    samples: &[Sample],
+    rays: usize,
+    weight: &(dyn Fn(u32, usize) -> f32 + Sync),
+) {
+    links.par_iter_mut().for_each(|l| {
+        let first = l.samples as usize;
+        let vis = Visibility::weighed(&samples[first..first + rays], weight);
+        match &mut l.t {
+            Transfer::Surfaces { vis: v, .. } => *v = vis.pair,
+            Transfer::Point { vis: v, .. } => *v = vis.overall,
+        }
+    });
 }
 
 /// Visible fractions of a link's rays, per pair of sides they join: a
 /// receiver side only sees the part of the source in its half-space, so
 /// rays to the other half say nothing about it (a box standing on the
 /// floor hides the light from its inner side, not from its outer one).
+///
+/// Each ray counts with the radiosity of the source leaf it ends on: an
+/// element's average radiosity already includes its dark parts (a floor
+/// element half under a box), and counting their hidden rays again would
+/// darken it twice.
 struct Visibility {
     overall: f32,
     /// `[receiver side][source side]`.
     pair: [[f32; 2]; 2],
-    /// Per receiver side, over both source sides.
-    side: [f32; 2],
 }
 
 impl Visibility {
-    fn count(blocked: &[bool], sides: &[(usize, usize)]) -> Self {
-        let mut open = [[0u32; 2]; 2];
-        let mut all = [[0u32; 2]; 2];
-        for (&b, &(a, s)) in blocked.iter().zip(sides) {
-            all[a][s] += 1;
-            open[a][s] += u32::from(!b);
+    fn weighed(samples: &[Sample], weight: &dyn Fn(u32, usize) -> f32) -> Self {
+        let by = |w: &dyn Fn(&Sample) -> f32| {
+            let mut open = [[0.0f32; 2]; 2];
+            let mut all = [[0.0f32; 2]; 2];
+            for s in samples {
+                let (a, b) = (s.sides.0 as usize, s.sides.1 as usize);
+                let w = w(s);
+                all[a][b] += w;
+                if s.open {
+                    open[a][b] += w;
+                }
+            }
+            (open, all)
+        };
+        let (mut open, mut all) = by(&|s| weight(s.leaf, s.sides.1 as usize));
+        if all.iter().flatten().sum::<f32>() <= 0.0 {
+            // A dark source: plain ray counts.
+            (open, all) = by(&|_| 1.0);
         }
-        let frac =
-            |o: u32, n: u32, fallback: f32| if n > 0 { o as f32 / n as f32 } else { fallback };
+        let frac = |o: f32, n: f32, fallback: f32| if n > 0.0 { o / n } else { fallback };
         let overall = frac(open.iter().flatten().sum(), all.iter().flatten().sum(), 0.0);
         let side = [0, 1].map(|a| frac(open[a][0] + open[a][1], all[a][0] + all[a][1], overall));
         let pair = [0, 1].map(|a| [0, 1].map(|b| frac(open[a][b], all[a][b], side[a])));
-        Self {
-            overall,
-            pair,
-            side,
-        }
+        Self { overall, pair }
     }
 }
 
@@ -317,7 +396,8 @@ fn transfer(h: &Hierarchy, r: u32, s: u32, vis: &Visibility) -> Transfer {
         let d2 = d.length_squared();
         return Transfer::Point {
             dir: d / d2.sqrt(),
-            g: vis.overall / d2,
+            g: 1.0 / d2,
+            vis: vis.overall,
         };
     }
     // Close pairs vary fast over the receiver: average over more points.
@@ -334,39 +414,35 @@ fn transfer(h: &Hierarchy, r: u32, s: u32, vis: &Visibility) -> Transfer {
         f[1][b] += sides[1];
     }
     let w = 1.0 / pts.len() as f32;
-    for (a, row) in f.iter_mut().enumerate() {
-        for (b, v) in row.iter_mut().enumerate() {
-            *v *= w * vis.pair[a][b];
-        }
+    Transfer::Surfaces {
+        f: f.map(|row| row.map(|v| v * w)),
+        vis: vis.pair,
     }
-    Transfer::Surfaces { f, vis: vis.side }
 }
 
 /// The j-th of n shadow rays between a point of `r` and a point of `s`,
-/// ending just short of `s` so that neither end counts as a blocker, and
-/// the sides `(receiver, source)` it leaves and reaches (0 = front).
-fn shadow_ray(
-    h: &Hierarchy,
-    r: u32,
-    s: u32,
-    seed: u32,
-    j: usize,
-    n: usize,
-) -> (Ray, (usize, usize)) {
-    let (pr, nr) = sample_point(h, r, seed, j, n);
-    let (ps, ns) = sample_point(h, s, seed ^ 0x9e37_79b9, j, n);
+/// ending just short of `s` so that neither end counts as a blocker, with
+/// the source leaf it reaches and the sides it joins (not yet traced).
+fn shadow_ray(h: &Hierarchy, r: u32, s: u32, seed: u32, j: usize, n: usize) -> (Ray, Sample) {
+    let (pr, nr, _) = sample_point(h, r, seed, j, n);
+    let (ps, ns, leaf) = sample_point(h, s, seed ^ 0x9e37_79b9, j, n);
     let a = offset_origin(pr, nr, ps - pr);
     let b = offset_origin(ps, ns, pr - ps);
-    let sides = (
-        usize::from((ps - pr).dot(nr) < 0.0),
-        usize::from((pr - ps).dot(ns) < 0.0),
-    );
-    (Ray::segment(a, b - a, 1.0), sides)
+    let sample = Sample {
+        leaf,
+        sides: (
+            u8::from((ps - pr).dot(nr) < 0.0),
+            u8::from((pr - ps).dot(ns) < 0.0),
+        ),
+        open: false,
+    };
+    (Ray::segment(a, b - a, 1.0), sample)
 }
 
-/// A point on the surface of node `i` and the normal there: stratified over
-/// a triangle, or on an area-chosen patch of a cluster.
-fn sample_point(h: &Hierarchy, mut i: u32, seed: u32, j: usize, n: usize) -> (Vec3, Vec3) {
+/// A point on the surface of node `i`, the normal there and the leaf that
+/// holds it: stratified over a triangle, or on an area-chosen patch of a
+/// cluster.
+fn sample_point(h: &Hierarchy, mut i: u32, seed: u32, j: usize, n: usize) -> (Vec3, Vec3, u32) {
     let mut u = (j as f32 + unit(hash3(seed, j as u32, 1))) / n as f32;
     while h.node(i).cluster {
         let kids = &h.node(i).children;
@@ -390,7 +466,27 @@ fn sample_point(h: &Hierarchy, mut i: u32, seed: u32, j: usize, n: usize) -> (Ve
         (a, b) = (1.0 - a, 1.0 - b);
     }
     let [p0, p1, p2] = node.tri;
-    (p0 + (p1 - p0) * a + (p2 - p0) * b, node.normal)
+    let p = p0 + (p1 - p0) * a + (p2 - p0) * b;
+    (p, node.normal, leaf_at(h, i, [1.0 - a - b, a, b]))
+}
+
+/// The leaf below surface node `i` that holds the point of barycentric
+/// coordinates `w` (against `i`'s corners), following the midpoint
+/// subdivision: child `k` keeps corner `k`, child 3 is the middle one.
+fn leaf_at(h: &Hierarchy, mut i: u32, mut w: [f32; 3]) -> u32 {
+    while let [c0, c1, c2, c3] = h.node(i).children[..] {
+        (i, w) = if w[0] >= 0.5 {
+            (c0, [2.0 * w[0] - 1.0, 2.0 * w[1], 2.0 * w[2]])
+        } else if w[1] >= 0.5 {
+            (c1, [2.0 * w[0], 2.0 * w[1] - 1.0, 2.0 * w[2]])
+        } else if w[2] >= 0.5 {
+            (c2, [2.0 * w[0], 2.0 * w[1], 2.0 * w[2] - 1.0])
+        } else {
+            // The middle child's corners are the midpoints (b+c, c+a, a+b)/2.
+            (c3, [1.0 - 2.0 * w[0], 1.0 - 2.0 * w[1], 1.0 - 2.0 * w[2]])
+        };
+    }
+    i
 }
 
 pub fn hash3(a: u32, b: u32, c: u32) -> u32 {

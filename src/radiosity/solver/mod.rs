@@ -28,7 +28,7 @@ mod sources;
 
 use hierarchy::{Hierarchy, NONE};
 use linear::{Field, Operator};
-use links::{Link, Refiner};
+use links::{Link, Refiner, Sample};
 
 /// What a quality `q` asks of the solver.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -100,6 +100,7 @@ pub fn solve(
     // appear (inner nodes too: the oracle weighs them).
     let mut direct_nodes: Vec<[Vec3; 2]> = Vec::new();
     let mut links: Vec<Link> = Vec::new();
+    let mut samples: Vec<Sample> = Vec::new();
     // Reflected radiosity per leaf, from the last solve.
     let mut solution: Option<Field> = None;
     for round in 0..params.rounds {
@@ -154,9 +155,17 @@ pub fn solve(
             links = kept;
         }
         let pending = std::mem::take(&mut refiner.pending);
-        let (new, rays) = links::compute(&h, &pending, engine, params.rays_per_link);
+        let weight = |leaf: u32, side: usize| refiner.weight(&h, leaf, side);
+        links::reweigh(&mut links, &samples, params.rays_per_link, &weight);
+        let (new, new_samples, rays) =
+            links::compute(&h, &pending, engine, params.rays_per_link, &weight);
         stats.shadow_rays += rays;
-        links.extend(new);
+        let offset = samples.len() as u32;
+        links.extend(new.into_iter().map(|l| Link {
+            samples: l.samples + offset,
+            ..l
+        }));
+        samples.extend(new_samples);
         stats.shadow_rays += extend_direct(&h, &mut direct_nodes, &scene.lights, engine, &params);
 
         let last = round + 1 == params.rounds;

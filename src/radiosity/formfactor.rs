@@ -1,1 +1,179 @@
 //! Form factors: point-to-polygon analytic, visibility by shadow rays.
+//!
+//! The differential form factor from a point to a polygon has a closed form
+//! (Lambert; Nishita & Nakamae): `F = 1/(2π) Σ_k γ_k (n · ĝ_k)`, with `γ_k`
+//! the angle the k-th edge subtends at the point and `ĝ_k` the unit normal
+//! of the plane through the point and that edge. It stays finite for
+//! touching and adjacent polygons, where the centroid-to-centroid `1/r²`
+//! kernel blows up. The polygon must lie in the point's upper half-space,
+//! so sources are clipped to it first; area averages over a receiver come
+//! from the point formula at interior points of its midpoint subdivision.
+
+use std::f32::consts::PI;
+
+use glam::Vec3;
+
+/// A convex polygon of at most four corners: a triangle clipped by one
+/// plane.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Polygon {
+    corners: [Vec3; 4],
+    len: usize,
+}
+
+impl Polygon {
+    pub fn triangle(t: [Vec3; 3]) -> Self {
+        Self {
+            corners: [t[0], t[1], t[2], Vec3::ZERO],
+            len: 3,
+        }
+    }
+
+    pub fn corners(&self) -> &[Vec3] {
+        &self.corners[..self.len]
+    }
+
+    /// The part of the polygon where `(p - x) · n >= 0`.
+    pub fn clip_above(&self, x: Vec3, n: Vec3) -> Polygon {
+        let mut out = Polygon::default();
+        let c = self.corners();
+        for i in 0..c.len() {
+            let (a, b) = (c[i], c[(i + 1) % c.len()]);
+            let (da, db) = ((a - x).dot(n), (b - x).dot(n));
+            if da >= 0.0 {
+                out.push(a);
+            }
+            if (da >= 0.0) != (db >= 0.0) {
+                // The crossing, computed from the end that is above so that
+                // it lands on the plane and not below it.
+                let t = da / (da - db);
+                out.push(a + (b - a) * t.clamp(0.0, 1.0));
+            }
+        }
+        if out.len < 3 {
+            out.len = 0;
+        }
+        out
+    }
+
+    fn push(&mut self, p: Vec3) {
+        // A triangle clipped by one plane has at most four corners; more can
+        // only come from rounding and would be a repeated point.
+        if self.len < 4 {
+            self.corners[self.len] = p;
+            self.len += 1;
+        }
+    }
+}
+
+/// Form factor from a differential area at `x` with unit normal `n` to
+/// `poly`, which must lie in the half-space `(p - x) · n >= 0`.
+///
+/// Edges through `x` itself (a receiver point on the source's boundary)
+/// subtend no defined angle and are skipped, so touching geometry gives a
+/// finite value.
+pub fn point_to_polygon(x: Vec3, n: Vec3, poly: &Polygon) -> f32 {
+    let c = poly.corners();
+    if c.len() < 3 {
+        return 0.0;
+    }
+    let mut sum = 0.0f32;
+    for i in 0..c.len() {
+        let a = c[i] - x;
+        let b = c[(i + 1) % c.len()] - x;
+        let cross = a.cross(b);
+        let len = cross.length();
+        if len.is_nan() || len <= 0.0 || len.is_infinite() {
+            continue;
+        }
+        let gamma = len.atan2(a.dot(b));
+        sum += gamma * n.dot(cross) / len;
+    }
+    // The sign follows the polygon's winding as seen from x.
+    let f = sum.abs() / (2.0 * PI);
+    if f.is_finite() {
+        f.min(1.0)
+    } else {
+        0.0
+    }
+}
+
+/// Form factors from `x` (unit normal `n`) to the triangle `src`, for each
+/// side of the receiver: `[front (+n), back (-n)]`.
+pub fn point_to_triangle_sides(x: Vec3, n: Vec3, src: [Vec3; 3]) -> [f32; 2] {
+    let poly = Polygon::triangle(src);
+    let d = src.map(|v| (v - x).dot(n));
+    // A side whose half-space holds no corner sees nothing: skip its clip.
+    let side = |sign: f32| {
+        if d.iter().any(|&di| di * sign > 0.0) {
+            point_to_polygon(x, n * sign, &poly.clip_above(x, n * sign))
+        } else {
+            0.0
+        }
+    };
+    [side(1.0), side(-1.0)]
+}
+
+/// Interior points of `t` that split it into equal areas: the centroids of
+/// its `4^level` midpoint-subdivision triangles.
+pub fn receiver_points(t: [Vec3; 3], level: u32, out: &mut Vec<Vec3>) {
+    if level == 0 {
+        out.push((t[0] + t[1] + t[2]) / 3.0);
+        return;
+    }
+    for c in subdivide(t) {
+        receiver_points(c, level - 1, out);
+    }
+}
+
+/// The 4-way midpoint subdivision of a triangle: the three corner triangles
+/// (child `k` keeps corner `k`) and the middle one.
+pub fn subdivide([a, b, c]: [Vec3; 3]) -> [[Vec3; 3]; 4] {
+    let (ab, bc, ca) = ((a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5);
+    [[a, ab, ca], [ab, b, bc], [ca, bc, c], [bc, ca, ab]]
+}
+
+/// Area-averaged form factor from triangle `recv` to triangle `src`
+/// (both sides of the receiver together, no occlusion), from `4^level`
+/// receiver points.
+pub fn triangle_to_triangle(recv: [Vec3; 3], src: [Vec3; 3], level: u32) -> f32 {
+    let n = (recv[1] - recv[0])
+        .cross(recv[2] - recv[0])
+        .normalize_or_zero();
+    let mut pts = Vec::new();
+    receiver_points(recv, level, &mut pts);
+    let sum: f32 = pts
+        .iter()
+        .map(|&x| point_to_triangle_sides(x, n, src).iter().sum::<f32>())
+        .sum();
+    sum / pts.len() as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_hemisphere_of_polygon_gives_one() {
+        // A huge square above the point covers almost the whole hemisphere.
+        let s = 1e4;
+        let quad = [
+            Vec3::new(-s, -s, 1.0),
+            Vec3::new(s, -s, 1.0),
+            Vec3::new(s, s, 1.0),
+            Vec3::new(-s, s, 1.0),
+        ];
+        let f: f32 = [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]]
+            .iter()
+            .map(|&t| point_to_triangle_sides(Vec3::ZERO, Vec3::Z, t)[0])
+            .sum();
+        assert!((f - 1.0).abs() < 1e-3, "{f}");
+    }
+
+    #[test]
+    fn a_point_on_the_source_edge_stays_finite() {
+        let t = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let f = point_to_triangle_sides(Vec3::new(0.5, 0.0, 0.0), Vec3::Y, t);
+        assert!(f.iter().all(|v| v.is_finite() && *v >= 0.0), "{f:?}");
+    }
+}

@@ -1,0 +1,79 @@
+//! Hierarchical radiosity solve times: the Cornell box at three qualities on
+//! every backend in the build, and the same box cut into about 20,000
+//! patches (clustering is what keeps that tractable).
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use glam::Vec3;
+use rangewalk::accel::{self, Backend};
+use rangewalk::radiosity::formfactor::subdivide;
+use rangewalk::radiosity::{solve, Quality, Simplified};
+use rangewalk::scene::Scene;
+
+fn cornell() -> Scene {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml");
+    Scene::load(&path).unwrap_or_else(|e| panic!("{e:#}"))
+}
+
+fn cornell_box(c: &mut Criterion) {
+    let scene = cornell();
+    let simplified = Simplified::whole(&scene);
+    let mut group = c.benchmark_group("radiosity_cornell");
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(10));
+    for &backend in Backend::available() {
+        let engine = accel::build(backend, &scene.geometry(), &scene.at(0.0)).unwrap();
+        for q in [0.3f32, 0.6, 0.9] {
+            let quality = Quality::new(q).unwrap();
+            group.bench_with_input(
+                BenchmarkId::new(backend.to_string(), q),
+                &quality,
+                |b, &quality| {
+                    b.iter(|| solve(&scene, &simplified, engine.as_ref(), 0.0, quality).unwrap())
+                },
+            );
+        }
+    }
+    group.finish();
+}
+
+/// Every Cornell box triangle cut 4-way `levels` times, as patches.
+fn cut(scene: &Scene, levels: u32) -> Simplified {
+    let mut triangles: Vec<(u32, [Vec3; 3])> = Vec::new();
+    for (i, o) in scene.objects.iter().enumerate() {
+        for t in &o.mesh.triangles {
+            triangles.push((i as u32, t.map(|k| o.mesh.positions[k as usize])));
+        }
+    }
+    for _ in 0..levels {
+        triangles = triangles
+            .into_iter()
+            .flat_map(|(o, t)| subdivide(t).map(|c| (o, c)))
+            .collect();
+    }
+    Simplified::from_triangles(scene, triangles)
+}
+
+fn many_patches(c: &mut Criterion) {
+    let scene = cornell();
+    // 32 triangles x 4^4 = 8,192 and x 4^5 = 32,768: bracket 20,000.
+    let mut group = c.benchmark_group("radiosity_patches");
+    group.sample_size(10);
+    let backend = Backend::default_available();
+    let engine = accel::build(backend, &scene.geometry(), &scene.at(0.0)).unwrap();
+    for levels in [4u32, 5] {
+        let simplified = cut(&scene, levels);
+        let quality = Quality::new(0.5).unwrap();
+        group.bench_with_input(
+            BenchmarkId::new(backend.to_string(), simplified.patches.len()),
+            &simplified,
+            |b, s| b.iter(|| solve(&scene, s, engine.as_ref(), 0.0, quality).unwrap()),
+        );
+    }
+    group.finish();
+}
+
+criterion_group!(benches, cornell_box, many_patches);
+criterion_main!(benches);

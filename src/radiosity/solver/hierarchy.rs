@@ -1,0 +1,229 @@
+//! Elements and clusters: the two hierarchies hierarchical radiosity links.
+//!
+//! Below each patch, surface elements are refined lazily by 4-way midpoint
+//! subdivision down to a minimum area. Above the patches, a bounding-volume
+//! hierarchy groups them into clusters, so that refinement can start from
+//! one self link of the root instead of linking all pairs of patches.
+
+use glam::{Affine3A, Vec3};
+
+use crate::radiosity::formfactor::subdivide;
+use crate::radiosity::Simplified;
+
+pub const NONE: u32 = u32::MAX;
+
+/// A surface element (a triangle of one patch) or a cluster of patches.
+#[derive(Clone, Debug)]
+pub struct Node {
+    pub cluster: bool,
+    /// The patch a surface element belongs to (unused for clusters).
+    pub patch: u32,
+    /// World-space corners of a surface element.
+    pub tri: [Vec3; 3],
+    /// Unit front normal of a surface element.
+    pub normal: Vec3,
+    /// Surface area (a cluster's is the sum over its patches).
+    pub area: f32,
+    /// Bounding sphere.
+    pub center: Vec3,
+    pub radius: f32,
+    pub parent: u32,
+    pub children: Vec<u32>,
+}
+
+pub struct Hierarchy {
+    pub nodes: Vec<Node>,
+    /// The top cluster, or `NONE` for a scene without patches.
+    pub root: u32,
+    /// Surface node of each patch, `NONE` for patches degenerate in world
+    /// space.
+    pub patch_node: Vec<u32>,
+    /// Diffuse reflectance of each patch.
+    pub reflectance: Vec<Vec3>,
+    /// Emitted radiosity (π × radiance) of each patch, `[front, back]`.
+    pub emission: Vec<[Vec3; 2]>,
+    /// Surface elements are not split below this area.
+    pub min_area: f32,
+}
+
+/// Patches per cluster at the bottom of the cluster hierarchy.
+const CLUSTER_LEAF: usize = 4;
+
+impl Hierarchy {
+    /// The patches of `s` posed by `poses` (one per object), clustered.
+    pub fn build(s: &Simplified, poses: &[Affine3A], min_area: f32) -> Hierarchy {
+        let mut h = Hierarchy {
+            nodes: Vec::with_capacity(2 * s.patches.len()),
+            root: NONE,
+            patch_node: vec![NONE; s.patches.len()],
+            reflectance: s.patches.iter().map(|p| p.reflectance).collect(),
+            emission: s
+                .patches
+                .iter()
+                .map(|p| {
+                    let e = p.emission * std::f32::consts::PI;
+                    [e, if p.two_sided { e } else { Vec3::ZERO }]
+                })
+                .collect(),
+            min_area,
+        };
+        let mut roots = Vec::with_capacity(s.patches.len());
+        for (i, p) in s.patches.iter().enumerate() {
+            let xf = poses[p.object as usize];
+            let tri = p.vertices.map(|v| xf.transform_point3(v));
+            let cross = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+            let area = 0.5 * cross.length();
+            if !(area > 0.0 && area.is_finite()) {
+                continue;
+            }
+            let node = h.push_surface(i as u32, tri, NONE);
+            h.patch_node[i] = node;
+            roots.push(node);
+        }
+        if !roots.is_empty() {
+            h.root = h.cluster(&mut roots, NONE);
+        }
+        h
+    }
+
+    fn push_surface(&mut self, patch: u32, tri: [Vec3; 3], parent: u32) -> u32 {
+        let cross = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+        let center = (tri[0] + tri[1] + tri[2]) / 3.0;
+        let radius = tri
+            .iter()
+            .map(|&v| v.distance(center))
+            .fold(0.0f32, f32::max);
+        self.nodes.push(Node {
+            cluster: false,
+            patch,
+            tri,
+            normal: cross.normalize_or_zero(),
+            area: 0.5 * cross.length(),
+            center,
+            radius,
+            parent,
+            children: Vec::new(),
+        });
+        (self.nodes.len() - 1) as u32
+    }
+
+    /// A cluster over `items` (surface nodes), split at the median of the
+    /// longest axis of their centroids.
+    fn cluster(&mut self, items: &mut [u32], parent: u32) -> u32 {
+        let me = self.nodes.len() as u32;
+        self.nodes.push(Node {
+            cluster: true,
+            patch: NONE,
+            tri: [Vec3::ZERO; 3],
+            normal: Vec3::ZERO,
+            area: 0.0,
+            center: Vec3::ZERO,
+            radius: 0.0,
+            parent,
+            children: Vec::new(),
+        });
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        let (mut clo, mut chi) = (lo, hi);
+        let mut area = 0.0;
+        for &i in items.iter() {
+            let n = &self.nodes[i as usize];
+            for v in n.tri {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+            clo = clo.min(n.center);
+            chi = chi.max(n.center);
+            area += n.area;
+        }
+        let children = if items.len() <= CLUSTER_LEAF {
+            for &i in items.iter() {
+                self.nodes[i as usize].parent = me;
+            }
+            items.to_vec()
+        } else {
+            let axis = (chi - clo).max_position();
+            let mid = items.len() / 2;
+            let nodes = &self.nodes;
+            items.select_nth_unstable_by(mid, |&a, &b| {
+                nodes[a as usize].center[axis].total_cmp(&nodes[b as usize].center[axis])
+            });
+            let (l, r) = items.split_at_mut(mid);
+            vec![self.cluster(l, me), self.cluster(r, me)]
+        };
+        let node = &mut self.nodes[me as usize];
+        node.center = 0.5 * (lo + hi);
+        node.radius = 0.5 * (hi - lo).length();
+        node.area = area;
+        node.children = children;
+        me
+    }
+
+    pub fn node(&self, i: u32) -> &Node {
+        &self.nodes[i as usize]
+    }
+
+    /// Whether `i` has or may get children.
+    pub fn splittable(&self, i: u32) -> bool {
+        let n = self.node(i);
+        !n.children.is_empty() || (!n.cluster && n.area * 0.25 >= self.min_area)
+    }
+
+    /// The children of `i`, subdividing a surface element on first use.
+    pub fn split(&mut self, i: u32) -> Vec<u32> {
+        let n = &self.nodes[i as usize];
+        if !n.children.is_empty() || n.cluster {
+            return n.children.clone();
+        }
+        let (patch, tri) = (n.patch, n.tri);
+        let kids: Vec<u32> = subdivide(tri)
+            .into_iter()
+            .map(|t| self.push_surface(patch, t, i))
+            .collect();
+        // Keep the parent's normal: rounding in tiny children must not tilt
+        // them off the patch's plane.
+        let normal = self.nodes[i as usize].normal;
+        for &k in &kids {
+            self.nodes[k as usize].normal = normal;
+        }
+        self.nodes[i as usize].children = kids.clone();
+        kids
+    }
+
+    /// Every node once, parents before children.
+    pub fn top_down(&self) -> Vec<u32> {
+        let mut order = Vec::with_capacity(self.nodes.len());
+        if self.root == NONE {
+            return order;
+        }
+        order.push(self.root);
+        let mut i = 0;
+        while i < order.len() {
+            order.extend_from_slice(&self.nodes[order[i] as usize].children);
+            i += 1;
+        }
+        order
+    }
+
+    /// The surface elements without children, in node order.
+    pub fn leaves(&self) -> Vec<u32> {
+        (0..self.nodes.len() as u32)
+            .filter(|&i| {
+                let n = self.node(i);
+                !n.cluster && n.children.is_empty()
+            })
+            .collect()
+    }
+
+    /// The leaf of patch `p`'s subtree that holds the patch's corner `k`
+    /// (child `k` of a subdivision keeps corner `k`).
+    pub fn corner_leaf(&self, p: usize, k: usize) -> u32 {
+        let mut i = self.patch_node[p];
+        if i == NONE {
+            return NONE;
+        }
+        while let Some(&c) = self.node(i).children.get(k) {
+            i = c;
+        }
+        i
+    }
+}

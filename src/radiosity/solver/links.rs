@@ -1,0 +1,507 @@
+//! Links between nodes: refinement by the transported-power oracle, then
+//! form factors and visibility for the accepted ones.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::hierarchy::{Hierarchy, Node};
+use super::linear::NodeRadiosity;
+use crate::accel::{offset_origin, Ray, RayEngine};
+use crate::radiosity::formfactor::{point_to_triangle_sides, receiver_points};
+
+/// How light gets from a link's source to its receiver.
+#[derive(Clone, Copy, Debug)]
+pub enum Transfer {
+    /// Between two surface elements: `f[a][b]` is the unoccluded
+    /// area-averaged form factor from receiver side `a` to source side `b`
+    /// (0 = front), `vis[a][b]` its visible fraction.
+    Surfaces {
+        f: [[f32; 2]; 2],
+        vis: [[f32; 2]; 2],
+    },
+    /// From or to a cluster, treated as a point at its centre: `dir` is the
+    /// unit direction from receiver to source, `g` the inverse squared
+    /// distance, `vis` the visible fraction.
+    Point { dir: Vec3, g: f32, vis: f32 },
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Link {
+    pub r: u32,
+    pub s: u32,
+    pub t: Transfer,
+    /// First of the link's shadow-ray outcomes in the solve's sample list.
+    pub samples: u32,
+}
+
+/// One shadow ray's outcome, kept so that visibility can be re-weighed
+/// when the source's radiosity changes without tracing again.
+#[derive(Clone, Copy, Debug)]
+pub struct Sample {
+    /// The source leaf the ray ended on (at the time it was traced).
+    pub leaf: u32,
+    /// Receiver side and source side (0 = front).
+    pub sides: (u8, u8),
+    pub open: bool,
+}
+
+impl Transfer {
+    /// Whether the rays found the link partly hidden.
+    pub fn partial(&self) -> bool {
+        let part = |v: f32| v > 0.0 && v < 1.0;
+        match self {
+            Transfer::Surfaces { vis, .. } => vis.iter().flatten().any(|&v| part(v)),
+            Transfer::Point { vis, .. } => part(*vis),
+        }
+    }
+}
+
+/// The part of a link's form factor counted as error on top of the
+/// kernel's spread, for partial visibility within the elements.
+const VISIBILITY_SHARE: f32 = 0.25;
+
+/// The same for a link whose rays found it partly hidden (see
+/// `Refiner::verdict`).
+const PARTIAL_SHARE: f32 = 1.0;
+
+/// What the oracle makes of a pair of nodes.
+enum Verdict {
+    /// Nothing can pass (coplanar surfaces, back to back).
+    Drop,
+    Accept,
+    /// Too much power for one link, or a cluster too close for its
+    /// point approximation.
+    Split,
+}
+
+pub struct Refiner<'a> {
+    /// Source radiosity the oracle weighs links with; nodes created after
+    /// it was computed take their nearest ancestor's.
+    pub radiosity: &'a NodeRadiosity,
+    /// A link's error estimate may reach this much power (W).
+    pub max_error: f32,
+    /// Pairs to compute form factors for.
+    pub pending: Vec<(u32, u32)>,
+}
+
+impl Refiner<'_> {
+    /// Links `r` gathering from `s` (or, for `r == s`, everything within
+    /// `r`), down to where the oracle is satisfied.
+    pub fn refine(&mut self, h: &mut Hierarchy, r: u32, s: u32) {
+        if r == s {
+            if h.node(r).cluster {
+                let kids = h.split(r);
+                for &a in &kids {
+                    for &b in &kids {
+                        self.refine(h, a, b);
+                    }
+                }
+            }
+            return;
+        }
+        match self.verdict(h, r, s, false) {
+            Verdict::Drop => {}
+            Verdict::Accept => self.pending.push((r, s)),
+            Verdict::Split => match self.which(h, r, s) {
+                Some(true) => {
+                    for c in h.split(r) {
+                        self.refine(h, c, s);
+                    }
+                }
+                Some(false) => {
+                    for c in h.split(s) {
+                        self.refine(h, r, c);
+                    }
+                }
+                None => self.pending.push((r, s)),
+            },
+        }
+    }
+
+    /// Which of `links` the oracle would split under the current
+    /// radiosities; judged in parallel, since most stay.
+    pub fn to_split(&self, h: &Hierarchy, links: &[Link]) -> Vec<bool> {
+        links
+            .par_iter()
+            .map(|l| {
+                matches!(self.verdict(h, l.r, l.s, l.t.partial()), Verdict::Split)
+                    && self.which(h, l.r, l.s).is_some()
+            })
+            .collect()
+    }
+
+    /// Replaces an existing link by finer pending pairs.
+    pub fn split_link(&mut self, h: &mut Hierarchy, r: u32, s: u32) {
+        match self.which(h, r, s) {
+            Some(true) => {
+                for c in h.split(r) {
+                    self.refine(h, c, s);
+                }
+            }
+            _ => {
+                for c in h.split(s) {
+                    self.refine(h, r, c);
+                }
+            }
+        }
+    }
+
+    /// Which end to split: `Some(true)` the receiver, `Some(false)` the
+    /// source, `None` neither can be.
+    fn which(&self, h: &Hierarchy, r: u32, s: u32) -> Option<bool> {
+        let (nr, ns) = (h.node(r), h.node(s));
+        // A cluster close to the other end must open up, whatever its size.
+        let overlap = nr.center.distance(ns.center) <= nr.radius + ns.radius;
+        if overlap && (nr.cluster || ns.cluster) {
+            return Some(if nr.cluster && ns.cluster {
+                nr.radius >= ns.radius
+            } else {
+                nr.cluster
+            });
+        }
+        match (h.splittable(r), h.splittable(s)) {
+            (true, true) => Some(nr.radius >= ns.radius),
+            (true, false) => Some(true),
+            (false, true) => Some(false),
+            (false, false) => None,
+        }
+    }
+
+    /// `partial`: whether the link's rays found it partly hidden. Its two
+    /// ends then average lit and shadowed parts, and multiplying their
+    /// averages counts the shadow twice (a floor element half under a box
+    /// is both half dark and half hidden), so the whole magnitude is error.
+    fn verdict(&self, h: &Hierarchy, r: u32, s: u32, partial: bool) -> Verdict {
+        let (nr, ns) = (h.node(r), h.node(s));
+        let power = if !nr.cluster && !ns.cluster {
+            if coplanar(nr, ns) {
+                return Verdict::Drop;
+            }
+            let b = self.surface_b(h, s);
+            let bmax = b[0].max(b[1]).max_element();
+            let (lo, hi) = ff_range(nr, ns);
+            if hi.is_nan() || hi <= 0.0 {
+                return Verdict::Drop;
+            }
+            // What piecewise-constant irradiance gets wrong over the
+            // receiver (the kernel's spread), plus a share of the
+            // magnitude for visibility a few rays do not resolve.
+            let share = if partial {
+                PARTIAL_SHARE
+            } else {
+                VISIBILITY_SHARE
+            };
+            ((hi - lo) + share * hi) * nr.area * bmax
+        } else {
+            let d = nr.center.distance(ns.center) - nr.radius - ns.radius;
+            if d <= 0.0 {
+                return Verdict::Split;
+            }
+            let i = self.max_intensity(h, s);
+            i / (d * d) * nr.area
+        };
+        // Links that carry nothing yet stay, coarse, for later rounds to
+        // weigh with the light that reaches their source by then.
+        if power > self.max_error {
+            Verdict::Split
+        } else {
+            Verdict::Accept
+        }
+    }
+
+    fn known(&self, h: &Hierarchy, mut i: u32) -> u32 {
+        while i as usize >= self.radiosity.b.len() {
+            i = h.node(i).parent;
+        }
+        i
+    }
+
+    /// The weight a ray ending on `leaf`'s `side` gets in visible fractions.
+    pub fn weight(&self, h: &Hierarchy, leaf: u32, side: usize) -> f32 {
+        self.surface_b(h, leaf)[side].max_element()
+    }
+
+    fn surface_b(&self, h: &Hierarchy, s: u32) -> [Vec3; 2] {
+        self.radiosity.b[self.known(h, s) as usize]
+    }
+
+    fn max_intensity(&self, h: &Hierarchy, s: u32) -> f32 {
+        let n = h.node(s);
+        if n.cluster {
+            let k = s as usize;
+            let p = self.radiosity.p[k];
+            let d = self.radiosity.dv[k];
+            let dl = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).powf(0.5);
+            ((p * 0.25 + dl * 0.5) / std::f32::consts::PI).max_element()
+        } else {
+            let b = self.surface_b(h, s);
+            n.area * b[0].max(b[1]).max_element() / std::f32::consts::PI
+        }
+    }
+}
+
+/// Whether the source lies in the receiver's plane (nothing passes).
+fn coplanar(r: &Node, s: &Node) -> bool {
+    let tol = 1e-5 * (r.radius + s.radius);
+    s.tri
+        .iter()
+        .all(|&p| (p - r.center).dot(r.normal).abs() <= tol)
+}
+
+/// The smallest and largest point form factor (either side) over the
+/// receiver: at its centroid and near its corners, where an adjacent source
+/// is seen most.
+fn ff_range(r: &Node, s: &Node) -> (f32, f32) {
+    let c = r.center;
+    let [a, b, d] = r.tri;
+    let near = |p: Vec3| p + (c - p) * 0.05;
+    [c, near(a), near(b), near(d)]
+        .iter()
+        .map(|&x| {
+            let f = point_to_triangle_sides(x, r.normal, s.tri);
+            f[0].max(f[1])
+        })
+        .fold((f32::INFINITY, 0.0f32), |(lo, hi), f| {
+            (lo.min(f), hi.max(f))
+        })
+}
+
+/// Form factors and visibility of `pairs`, traced in batches. Returns the
+/// links (whose `samples` index the returned samples, `rays` per link) and
+/// the rays traced. `weight(leaf, side)` is the source radiosity the
+/// visible fractions are weighed with (see [`reweigh`]).
+pub fn compute(
+    h: &Hierarchy,
+    pairs: &[(u32, u32)],
+    engine: &dyn RayEngine,
+    rays: usize,
+    weight: &(dyn Fn(u32, usize) -> f32 + Sync),
+) -> (Vec<Link>, Vec<Sample>, u64) {
+    let out: Vec<(Vec<Link>, Vec<Sample>)> = pairs
+        .par_chunks(128)
+        .map(|chunk| {
+            let mut batch = Vec::with_capacity(chunk.len() * rays);
+            let mut samples = Vec::with_capacity(batch.capacity());
+            for &(r, s) in chunk {
+                let seed = hash3(r, s, 0);
+                for j in 0..rays {
+                    let (ray, sample) = shadow_ray(h, r, s, seed, j, rays);
+                    batch.push(ray);
+                    samples.push(sample);
+                }
+            }
+            let mut blocked = vec![false; batch.len()];
+            engine.occluded_batch(&batch, &mut blocked);
+            for (s, b) in samples.iter_mut().zip(blocked) {
+                s.open = !b;
+            }
+            let mut links = Vec::with_capacity(chunk.len());
+            let mut kept = Vec::with_capacity(samples.len());
+            for (k, &(r, s)) in chunk.iter().enumerate() {
+                let mine = &samples[k * rays..(k + 1) * rays];
+                if !mine.iter().any(|s| s.open) {
+                    continue;
+                }
+                let vis = Visibility::weighed(mine, weight);
+                let first = kept.len() as u32;
+                kept.extend_from_slice(mine);
+                links.push(Link {
+                    r,
+                    s,
+                    t: transfer(h, r, s, &vis),
+                    samples: first,
+                });
+            }
+            (links, kept)
+        })
+        .collect();
+    let mut links = Vec::new();
+    let mut samples = Vec::new();
+    for (l, s) in out {
+        let offset = samples.len() as u32;
+        links.extend(l.into_iter().map(|l| Link {
+            samples: l.samples + offset,
+            ..l
+        }));
+        samples.extend(s);
+    }
+    let traced = (pairs.len() * rays) as u64;
+    (links, samples, traced)
+}
+
+/// Visible fractions again, weighed with new source radiosities.
+pub fn reweigh(
+    links: &mut [Link],
+    samples: &[Sample],
+    rays: usize,
+    weight: &(dyn Fn(u32, usize) -> f32 + Sync),
+) {
+    links.par_iter_mut().for_each(|l| {
+        let first = l.samples as usize;
+        let vis = Visibility::weighed(&samples[first..first + rays], weight);
+        match &mut l.t {
+            Transfer::Surfaces { vis: v, .. } => *v = vis.pair,
+            Transfer::Point { vis: v, .. } => *v = vis.overall,
+        }
+    });
+}
+
+/// Visible fractions of a link's rays, per pair of sides they join: a
+/// receiver side only sees the part of the source in its half-space, so
+/// rays to the other half say nothing about it (a box standing on the
+/// floor hides the light from its inner side, not from its outer one).
+///
+/// Each ray counts with the radiosity of the source leaf it ends on: an
+/// element's average radiosity already includes its dark parts (a floor
+/// element half under a box), and counting their hidden rays again would
+/// darken it twice.
+struct Visibility {
+    overall: f32,
+    /// `[receiver side][source side]`.
+    pair: [[f32; 2]; 2],
+}
+
+impl Visibility {
+    fn weighed(samples: &[Sample], weight: &dyn Fn(u32, usize) -> f32) -> Self {
+        let by = |w: &dyn Fn(&Sample) -> f32| {
+            let mut open = [[0.0f32; 2]; 2];
+            let mut all = [[0.0f32; 2]; 2];
+            for s in samples {
+                let (a, b) = (s.sides.0 as usize, s.sides.1 as usize);
+                let w = w(s);
+                all[a][b] += w;
+                if s.open {
+                    open[a][b] += w;
+                }
+            }
+            (open, all)
+        };
+        let (mut open, mut all) = by(&|s| weight(s.leaf, s.sides.1 as usize));
+        if all.iter().flatten().sum::<f32>() <= 0.0 {
+            // A dark source: plain ray counts.
+            (open, all) = by(&|_| 1.0);
+        }
+        let frac = |o: f32, n: f32, fallback: f32| if n > 0.0 { o / n } else { fallback };
+        let overall = frac(open.iter().flatten().sum(), all.iter().flatten().sum(), 0.0);
+        let side = [0, 1].map(|a| frac(open[a][0] + open[a][1], all[a][0] + all[a][1], overall));
+        let pair = [0, 1].map(|a| [0, 1].map(|b| frac(open[a][b], all[a][b], side[a])));
+        Self { overall, pair }
+    }
+}
+
+fn transfer(h: &Hierarchy, r: u32, s: u32, vis: &Visibility) -> Transfer {
+    let (nr, ns) = (h.node(r), h.node(s));
+    if nr.cluster || ns.cluster {
+        let d = ns.center - nr.center;
+        let d2 = d.length_squared();
+        return Transfer::Point {
+            dir: d / d2.sqrt(),
+            g: 1.0 / d2,
+            vis: vis.overall,
+        };
+    }
+    // Close pairs vary fast over the receiver: average over more points.
+    let near = nr.center.distance(ns.center) < 2.0 * (nr.radius + ns.radius);
+    let mut pts = Vec::with_capacity(16);
+    receiver_points(nr.tri, if near { 2 } else { 1 }, &mut pts);
+    let sn = ns.normal;
+    let mut f = [[0.0f32; 2]; 2];
+    for &x in &pts {
+        let sides = point_to_triangle_sides(x, nr.normal, ns.tri);
+        // x sees the source's front when it lies in front of its plane.
+        let b = usize::from((x - ns.tri[0]).dot(sn) < 0.0);
+        f[0][b] += sides[0];
+        f[1][b] += sides[1];
+    }
+    let w = 1.0 / pts.len() as f32;
+    Transfer::Surfaces {
+        f: f.map(|row| row.map(|v| v * w)),
+        vis: vis.pair,
+    }
+}
+
+/// The j-th of n shadow rays between a point of `r` and a point of `s`,
+/// ending just short of `s` so that neither end counts as a blocker, with
+/// the source leaf it reaches and the sides it joins (not yet traced).
+fn shadow_ray(h: &Hierarchy, r: u32, s: u32, seed: u32, j: usize, n: usize) -> (Ray, Sample) {
+    let (pr, nr, _) = sample_point(h, r, seed, j, n);
+    let (ps, ns, leaf) = sample_point(h, s, seed ^ 0x9e37_79b9, j, n);
+    let a = offset_origin(pr, nr, ps - pr);
+    let b = offset_origin(ps, ns, pr - ps);
+    let sample = Sample {
+        leaf,
+        sides: (
+            u8::from((ps - pr).dot(nr) < 0.0),
+            u8::from((pr - ps).dot(ns) < 0.0),
+        ),
+        open: false,
+    };
+    (Ray::segment(a, b - a, 1.0), sample)
+}
+
+/// A point on the surface of node `i`, the normal there and the leaf that
+/// holds it: stratified over a triangle, or on an area-chosen patch of a
+/// cluster.
+fn sample_point(h: &Hierarchy, mut i: u32, seed: u32, j: usize, n: usize) -> (Vec3, Vec3, u32) {
+    let mut u = (j as f32 + unit(hash3(seed, j as u32, 1))) / n as f32;
+    while h.node(i).cluster {
+        let kids = &h.node(i).children;
+        let total: f32 = kids.iter().map(|&c| h.node(c).area).sum();
+        let mut pick = u * total;
+        let mut next = kids[kids.len() - 1];
+        for &c in kids {
+            let a = h.node(c).area;
+            if pick < a {
+                u = (pick / a).clamp(0.0, 0.999_999);
+                next = c;
+                break;
+            }
+            pick -= a;
+        }
+        i = next;
+    }
+    let node = h.node(i);
+    let (mut a, mut b) = (u, unit(hash3(seed, j as u32, 2)));
+    if a + b > 1.0 {
+        (a, b) = (1.0 - a, 1.0 - b);
+    }
+    let [p0, p1, p2] = node.tri;
+    let p = p0 + (p1 - p0) * a + (p2 - p0) * b;
+    (p, node.normal, leaf_at(h, i, [1.0 - a - b, a, b]))
+}
+
+/// The leaf below surface node `i` that holds the point of barycentric
+/// coordinates `w` (against `i`'s corners), following the midpoint
+/// subdivision: child `k` keeps corner `k`, child 3 is the middle one.
+fn leaf_at(h: &Hierarchy, mut i: u32, mut w: [f32; 3]) -> u32 {
+    while let [c0, c1, c2, c3] = h.node(i).children[..] {
+        (i, w) = if w[0] >= 0.5 {
+            (c0, [2.0 * w[0] - 1.0, 2.0 * w[1], 2.0 * w[2]])
+        } else if w[1] >= 0.5 {
+            (c1, [2.0 * w[0], 2.0 * w[1] - 1.0, 2.0 * w[2]])
+        } else if w[2] >= 0.5 {
+            (c2, [2.0 * w[0], 2.0 * w[1], 2.0 * w[2] - 1.0])
+        } else {
+            // The middle child's corners are the midpoints (b+c, c+a, a+b)/2.
+            (c3, [1.0 - 2.0 * w[0], 1.0 - 2.0 * w[1], 1.0 - 2.0 * w[2]])
+        };
+    }
+    i
+}
+
+pub fn hash3(a: u32, b: u32, c: u32) -> u32 {
+    let mut x = a
+        .wrapping_mul(0x8da6_b343)
+        .wrapping_add(b.wrapping_mul(0xd816_3841))
+        .wrapping_add(c.wrapping_mul(0xcb1a_b31f));
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^ (x >> 16)
+}
+
+/// A number in [0, 1) from a hash.
+pub fn unit(x: u32) -> f32 {
+    (x >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+}

@@ -301,7 +301,14 @@ pub struct Solved {
 }
 
 /// Solves `x − ρ ⊙ K x = b` by BiCGSTAB from the guess `x`, to relative
-/// residual `tol` per channel or `max_iter` iterations.
+/// residual `tol` per channel or `max_iter` iterations in all.
+///
+/// BiCGSTAB can stall when one channel's recurrence breaks down (its shadow
+/// residual turns orthogonal) while the others go on, and its updated
+/// residual drifts from the true one in single precision. So it runs in
+/// cycles: each ends on convergence, breakdown or stagnation, and the next
+/// restarts from the true residual of the current iterate, as long as the
+/// true residual keeps falling.
 pub fn solve(
     op: &Operator,
     rho: &[Vec3],
@@ -329,14 +336,49 @@ pub fn solve(
         }
         worst
     };
-    let ax = apply(&x);
-    let mut r = combine(b, &ax, DVec3::NEG_ONE);
+    let true_residual = |x: &Field| combine(b, &apply(x), DVec3::NEG_ONE);
+    let mut iterations = 0;
+    let mut r = true_residual(&x);
+    let mut res = rel(&r);
+    while res > tol && iterations < max_iter {
+        let before = res;
+        let (next, used) = cycle(&apply, &rel, op, &r, x.clone(), tol, max_iter - iterations);
+        iterations += used;
+        let r_next = true_residual(&next);
+        let res_next = rel(&r_next);
+        if !(res_next < before) {
+            break;
+        }
+        (x, r, res) = (next, r_next, res_next);
+        if used == 0 || res_next > 0.5 * before && res_next <= 10.0 * tol {
+            break;
+        }
+    }
+    Solved {
+        residual: res,
+        x,
+        iterations,
+    }
+}
+
+/// One BiCGSTAB cycle from `x` with true residual `r`; returns the new
+/// iterate and the iterations it took.
+fn cycle(
+    apply: &dyn Fn(&Field) -> Field,
+    rel: &dyn Fn(&Field) -> f64,
+    op: &Operator,
+    r: &Field,
+    mut x: Field,
+    tol: f64,
+    max_iter: usize,
+) -> (Field, usize) {
+    let mut r = r.clone();
     let r0 = r.clone();
     let mut res = rel(&r);
     let mut iterations = 0;
     let (mut rho_old, mut alpha, mut omega) = (DVec3::ONE, DVec3::ONE, DVec3::ONE);
-    let mut v = zero(b.len());
-    let mut p = zero(b.len());
+    let mut v = zero(r.len());
+    let mut p = zero(r.len());
     while res > tol && iterations < max_iter {
         iterations += 1;
         let rho_new = op.dot(&r0, &r);
@@ -358,18 +400,15 @@ pub fn solve(
         r = combine(&s, &t, -omega);
         res = rel(&r);
         rho_old = rho_new;
-        if omega == DVec3::ZERO || rho_new == DVec3::ZERO {
+        // A channel whose recurrence broke down stalls the cycle: restart.
+        let left = op.dot(&r, &r);
+        if (0..3).any(|c| (omega[c] == 0.0 || rho_new[c] == 0.0) && left[c] > 0.0)
+            || !res.is_finite()
+        {
             break;
         }
     }
-    // The recurrence drifts from the true residual; report the true one.
-    let ax = apply(&x);
-    let r = combine(b, &ax, DVec3::NEG_ONE);
-    Solved {
-        residual: rel(&r),
-        x,
-        iterations,
-    }
+    (x, iterations)
 }
 
 fn zero(n: usize) -> Field {

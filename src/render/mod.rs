@@ -172,9 +172,9 @@ impl PixelStrata {
     fn new(spp: u32, seed: u64, pixel: u64) -> Self {
         let n = spp.isqrt();
         let mut cells: Vec<u32> = (0..n * n).collect();
-        let mut rng = Pcg32::for_sample(seed ^ 0x5eed_0f_57_7a7a, pixel, u64::MAX);
+        let mut rng = Pcg32::for_sample(seed ^ 0x5eed_0f57_7a7a, pixel, u64::MAX);
         for i in (1..cells.len()).rev() {
-            let j = (rng.next_u32() as u64 * (i as u64 + 1) >> 32) as usize;
+            let j = ((rng.next_u32() as u64 * (i as u64 + 1)) >> 32) as usize;
             cells.swap(i, j);
         }
         Self { n, cells }

@@ -346,7 +346,7 @@ pub fn solve(
         iterations += used;
         let r_next = true_residual(&next);
         let res_next = rel(&r_next);
-        if !(res_next < before) {
+        if res_next >= before || res_next.is_nan() {
             break;
         }
         (x, r, res) = (next, r_next, res_next);

@@ -143,7 +143,7 @@ struct ViewArgs {
     #[arg(long, default_value = "main")]
     camera: String,
     /// Image size, `<W>x<H>`.
-    #[arg(long, default_value = "256x256", value_parser = parse_size)]
+    #[arg(long, default_value = "256x256", value_parser = image::parse_size)]
     size: (u32, u32),
     /// Projection; the camera's field of view applies to `perspective` only.
     #[arg(long, value_enum, default_value_t = ProjectionArg::Perspective)]
@@ -160,19 +160,6 @@ enum ProjectionArg {
 #[derive(Clone, Copy, ValueEnum)]
 enum ExportFormat {
     Mitsuba,
-}
-
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let err = || format!("size `{s}` is not <W>x<H> with positive integers, e.g. 512x512");
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(err)?;
-    let (w, h) = (
-        w.trim().parse::<u32>().map_err(|_| err())?,
-        h.trim().parse::<u32>().map_err(|_| err())?,
-    );
-    if w == 0 || h == 0 || w > 32768 || h > 32768 {
-        return Err(err());
-    }
-    Ok((w, h))
 }
 
 impl ViewArgs {

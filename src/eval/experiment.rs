@@ -48,7 +48,7 @@ pub struct IndirectArgs {
     #[arg(long)]
     pub frames: Option<u32>,
     /// Image size, `<W>x<H>`.
-    #[arg(long, default_value = "256x256", value_parser = parse_size)]
+    #[arg(long, default_value = "256x256", value_parser = crate::image::parse_size)]
     pub size: (u32, u32),
     /// Named camera of the scene.
     #[arg(long, default_value = "main")]
@@ -533,19 +533,6 @@ fn equal_time_spp(curve: &[ConvergencePoint], budget: f64, max_spp: u32) -> (u32
     }
 }
 
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let err = || format!("size `{s}` is not <W>x<H> with positive integers, e.g. 256x256");
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(err)?;
-    let (w, h) = (
-        w.trim().parse::<u32>().map_err(|_| err())?,
-        h.trim().parse::<u32>().map_err(|_| err())?,
-    );
-    if w == 0 || h == 0 || w > 32768 || h > 32768 {
-        return Err(err());
-    }
-    Ok((w, h))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -591,8 +578,8 @@ mod tests {
 
     #[test]
     fn sizes_parse() {
-        assert_eq!(parse_size("32x16"), Ok((32, 16)));
-        assert!(parse_size("0x16").is_err());
-        assert!(parse_size("32").is_err());
+        assert_eq!(crate::image::parse_size("32x16"), Ok((32, 16)));
+        assert!(crate::image::parse_size("0x16").is_err());
+        assert!(crate::image::parse_size("32").is_err());
     }
 }

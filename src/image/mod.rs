@@ -92,6 +92,20 @@ impl RangeImage {
     }
 }
 
+/// Parses an image size `<W>x<H>` given on a command line.
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let err = || format!("size `{s}` is not <W>x<H> with positive integers, e.g. 512x512");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(err)?;
+    let (w, h) = (
+        w.trim().parse::<u32>().map_err(|_| err())?,
+        h.trim().parse::<u32>().map_err(|_| err())?,
+    );
+    if w == 0 || h == 0 || w > 32768 || h > 32768 {
+        return Err(err());
+    }
+    Ok((w, h))
+}
+
 /// Writes a range image as OpenEXR (whatever the file's extension).
 pub fn write_exr(path: impl AsRef<Path>, image: &RangeImage) -> Result<()> {
     #[cfg(feature = "oiio")]

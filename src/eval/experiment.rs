@@ -362,9 +362,10 @@ fn run_quality(
     let simplify_s = start.elapsed().as_secs_f64();
     let s = &simplified.stats;
     eprintln!(
-        "{tag}: {} of {} surfaces kept, {} records ({simplify_s:.3} s); decomposing in time",
-        s.final_surfaces,
+        "{tag}: {} surfaces, {} pruned, {} patches, {} records ({simplify_s:.3} s); decomposing in time",
         s.initial_surfaces,
+        s.pruned_surfaces,
+        s.final_surfaces,
         simplified.records.len()
     );
     let start = Instant::now();

@@ -56,10 +56,15 @@ pub fn prune_small(mesh: &Mesh, min_area: f32) -> (Mesh, f32, usize) {
         })
         .collect();
     let small = |r: &u32| part_area[r] < min_area;
-    let pruned_area = part_area
-        .values()
-        .filter(|&&a| a < min_area)
-        .fold(0.0, |s, a| s + a);
+    // Summed in triangle order: a sum over the map's values would change in
+    // its last bits from run to run with the map's random iteration order.
+    let pruned_area = mesh
+        .triangles
+        .iter()
+        .zip(&roots)
+        .filter(|(_, r)| small(r))
+        .map(|(&t, _)| mesh.triangle_area(t))
+        .sum();
     let pruned_parts = part_area.values().filter(|&&a| a < min_area).count();
     let kept = Mesh {
         positions: mesh.positions.clone(),

@@ -35,7 +35,7 @@ impl NodeRadiosity {
     fn intensity(&self, h: &Hierarchy, i: u32, w: Vec3) -> Vec3 {
         let n = h.node(i);
         let k = i as usize;
-        if n.cluster {
+        if !n.flat {
             let d = self.dv[k];
             ((self.p[k] * 0.25 + (d[0] * w.x + d[1] * w.y + d[2] * w.z) * 0.5) / PI).max(Vec3::ZERO)
         } else {
@@ -123,7 +123,7 @@ impl<'a> Operator<'a> {
         for &i in self.order.iter().rev() {
             let node = self.h.node(i);
             let k = i as usize;
-            if node.cluster {
+            if !node.flat {
                 for &c in &node.children {
                     let c = c as usize;
                     let (pc, dc) = (r.p[c], r.dv[c]);
@@ -176,7 +176,7 @@ impl<'a> Operator<'a> {
                         }
                         Transfer::Point { dir, g, vis } => {
                             let e = rad.intensity(h, l.s, -dir) * (g * vis);
-                            if nr.cluster {
+                            if !nr.flat {
                                 gv[0] += e * dir.x;
                                 gv[1] += e * dir.y;
                                 gv[2] += e * dir.z;
@@ -210,9 +210,9 @@ impl<'a> Operator<'a> {
             let (pgs, pgp, pgv) = (gs[k], gp[k], gv[k]);
             for &c in &node.children {
                 let c = c as usize;
-                if node.cluster {
+                if !node.flat {
                     let child = &h.nodes[c];
-                    if child.cluster {
+                    if !child.flat {
                         for a in 0..3 {
                             gv[c][a] += pgv[a];
                         }

@@ -193,6 +193,9 @@ impl Refiner<'_> {
             };
             ((hi - lo) + share * hi) * nr.area * bmax
         } else {
+            if flat_coplanar(nr, ns) {
+                return Verdict::Drop;
+            }
             let d = nr.center.distance(ns.center) - nr.radius - ns.radius;
             if d <= 0.0 {
                 return Verdict::Split;
@@ -227,7 +230,7 @@ impl Refiner<'_> {
 
     fn max_intensity(&self, h: &Hierarchy, s: u32) -> f32 {
         let n = h.node(s);
-        if n.cluster {
+        if !n.flat {
             let k = s as usize;
             let p = self.radiosity.p[k];
             let d = self.radiosity.dv[k];
@@ -246,6 +249,24 @@ fn coplanar(r: &Node, s: &Node) -> bool {
     s.tri
         .iter()
         .all(|&p| (p - r.center).dot(r.normal).abs() <= tol)
+}
+
+/// Whether two flat nodes lie in one plane, facing either way.
+fn flat_coplanar(r: &Node, s: &Node) -> bool {
+    if !(r.flat && s.flat) {
+        return false;
+    }
+    let c = r.normal.dot(s.normal);
+    let along = if c >= 0.999_99 {
+        s.plane
+    } else if c <= -0.999_99 {
+        [-s.plane[1], -s.plane[0]]
+    } else {
+        return false;
+    };
+    let tol = 1e-5 * (r.radius + s.radius);
+    let at = r.plane[0];
+    r.plane[1] - at <= tol && (along[0] - at).abs() <= tol && (along[1] - at).abs() <= tol
 }
 
 /// The smallest and largest point form factor (either side) over the

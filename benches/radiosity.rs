@@ -1,6 +1,7 @@
-//! Hierarchical radiosity solve times: the Cornell box at three qualities on
-//! every backend in the build, and the same box cut into about 20,000
-//! patches (clustering is what keeps that tractable).
+//! Hierarchical radiosity solve times on the scenes as the pipeline gives
+//! them to the solver (simplified at each quality): the Cornell box at three
+//! qualities on every backend in the build, the studio at q = 0.9, and the
+//! box cut into about 8,000 and 33,000 patches.
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -9,24 +10,29 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::Vec3;
 use rangewalk::accel::{self, Backend};
 use rangewalk::radiosity::formfactor::subdivide;
-use rangewalk::radiosity::{solve, Quality, Simplified};
+use rangewalk::radiosity::{simplify, solve, Quality, Simplified};
 use rangewalk::scene::Scene;
 
-fn cornell() -> Scene {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml");
+fn bundled(name: &str) -> Scene {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("scenes/{name}/scene.toml"));
     Scene::load(&path).unwrap_or_else(|e| panic!("{e:#}"))
+}
+
+fn cornell() -> Scene {
+    bundled("cornell-box")
 }
 
 fn cornell_box(c: &mut Criterion) {
     let scene = cornell();
-    let simplified = Simplified::whole(&scene);
     let mut group = c.benchmark_group("radiosity_cornell");
     group.sample_size(10);
     group.measurement_time(Duration::from_secs(10));
     for &backend in Backend::available() {
-        let engine = accel::build(backend, &scene.geometry(), &scene.at(0.0)).unwrap();
+        let mut engine = accel::build(backend, &scene.geometry(), &scene.at(0.0)).unwrap();
         for q in [0.3f32, 0.6, 0.9] {
             let quality = Quality::new(q).unwrap();
+            let simplified = simplify(&scene, engine.as_mut(), quality).unwrap();
+            engine.set_transforms(&scene.at(0.0)).unwrap();
             group.bench_with_input(
                 BenchmarkId::new(backend.to_string(), q),
                 &quality,
@@ -75,5 +81,22 @@ fn many_patches(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, cornell_box, many_patches);
+/// The studio (72,310 triangles, sunlit) at q = 0.9, simplified to about
+/// 14,500 patches.
+fn studio(c: &mut Criterion) {
+    let scene = bundled("studio");
+    let mut group = c.benchmark_group("radiosity_studio");
+    group.sample_size(10);
+    let backend = Backend::default_available();
+    let mut engine = accel::build(backend, &scene.geometry(), &scene.at(0.0)).unwrap();
+    let quality = Quality::new(0.9).unwrap();
+    let simplified = simplify(&scene, engine.as_mut(), quality).unwrap();
+    engine.set_transforms(&scene.at(0.0)).unwrap();
+    group.bench_function(BenchmarkId::new(backend.to_string(), 0.9), |b| {
+        b.iter(|| solve(&scene, &simplified, engine.as_ref(), 0.0, quality).unwrap())
+    });
+    group.finish();
+}
+
+criterion_group!(benches, cornell_box, studio, many_patches);
 criterion_main!(benches);

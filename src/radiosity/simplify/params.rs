@@ -47,9 +47,12 @@ pub const VIEWS_PER_TRIAL: usize = 8;
 impl Params {
     pub fn new(quality: Quality, scene_size: f32) -> Params {
         let q = quality.get();
-        // 8 patch edges along the scene's diagonal at q = 0, 34 at q = 1: a
-        // room's surfaces then give about 1.5k to 12k patches.
-        let max_edge = scene_size * (-(3.0 + 2.1 * q)).exp2();
+        // 8 patch edges along the scene's diagonal at q = 0, 23 at q = 1: a
+        // room's surfaces then give about 1.5k to 7k patches, which the
+        // solver links in about a second (finer ones cost time and changed
+        // no record of the Cornell box by more than its Monte Carlo check's
+        // scatter).
+        let max_edge = scene_size * (-(3.0 + 1.5 * q)).exp2();
         let halvings = (scene_size / max_edge).log2().ceil() as u32;
         let qd = f64::from(q);
         Params {

@@ -63,8 +63,7 @@ pub fn prune_small(mesh: &Mesh, min_area: f32) -> (Mesh, f32, usize) {
         .iter()
         .zip(&roots)
         .filter(|(_, r)| small(r))
-        .map(|(&t, _)| mesh.triangle_area(t))
-        .sum();
+        .fold(0.0, |sum, (&t, _)| sum + mesh.triangle_area(t));
     let pruned_parts = part_area.values().filter(|&&a| a < min_area).count();
     let kept = Mesh {
         positions: mesh.positions.clone(),

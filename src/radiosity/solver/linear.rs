@@ -167,7 +167,7 @@ impl<'a> Operator<'a> {
                 let mut gv = [Vec3::ZERO; 3];
                 for l in &self.links[a..b] {
                     match l.t {
-                        Transfer::Surfaces { f, vis } => {
+                        Transfer::Surfaces { f, vis, .. } => {
                             let bs = rad.b[l.s as usize];
                             for side in 0..2 {
                                 let (f, v) = (f[side], vis[side]);
@@ -266,7 +266,7 @@ fn coverage(h: &Hierarchy, links: &[Link], range: &[(usize, usize)], leaf: u32) 
     while a != NONE && !h.node(a).cluster {
         let (lo, hi) = range[a as usize];
         for l in &links[lo..hi] {
-            if let Transfer::Surfaces { f, vis } = l.t {
+            if let Transfer::Surfaces { f, vis, .. } = l.t {
                 let p = point_to_triangle_sides(x, n, h.node(l.s).tri);
                 for side in 0..2 {
                     let (f, v) = (f[side], vis[side]);

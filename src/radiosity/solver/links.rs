@@ -18,12 +18,20 @@ pub enum Transfer {
     Surfaces {
         f: [[f32; 2]; 2],
         vis: [[f32; 2]; 2],
+        /// The oracle's smallest and largest point form factor over the
+        /// receiver, kept so that later rounds judge the link without
+        /// evaluating them again.
+        spread: Spread,
     },
     /// From or to a cluster, treated as a point at its centre: `dir` is the
     /// unit direction from receiver to source, `g` the inverse squared
     /// distance, `vis` the visible fraction.
     Point { dir: Vec3, g: f32, vis: f32 },
 }
+
+/// Smallest and largest point form factor over a receiver (see
+/// [`ff_range`]); zero for pairs with a cluster.
+pub type Spread = [f32; 2];
 
 #[derive(Clone, Copy, Debug)]
 pub struct Link {
@@ -80,8 +88,8 @@ pub struct Refiner<'a> {
     pub radiosity: &'a NodeRadiosity,
     /// A link's error estimate may reach this much power (W).
     pub max_error: f32,
-    /// Pairs to compute form factors for.
-    pub pending: Vec<(u32, u32)>,
+    /// Pairs to compute form factors for, with their spread.
+    pub pending: Vec<(u32, u32, Spread)>,
 }
 
 impl Refiner<'_> {
@@ -99,9 +107,10 @@ impl Refiner<'_> {
             }
             return;
         }
-        match self.verdict(h, r, s, false) {
+        let (verdict, spread) = self.verdict(h, r, s, false, None);
+        match verdict {
             Verdict::Drop => {}
-            Verdict::Accept => self.pending.push((r, s)),
+            Verdict::Accept => self.pending.push((r, s, spread)),
             Verdict::Split => match self.which(h, r, s) {
                 Some(true) => {
                     for c in h.split(r) {
@@ -113,7 +122,7 @@ impl Refiner<'_> {
                         self.refine(h, r, c);
                     }
                 }
-                None => self.pending.push((r, s)),
+                None => self.pending.push((r, s, spread)),
             },
         }
     }
@@ -124,8 +133,14 @@ impl Refiner<'_> {
         links
             .par_iter()
             .map(|l| {
-                matches!(self.verdict(h, l.r, l.s, l.t.partial()), Verdict::Split)
-                    && self.which(h, l.r, l.s).is_some()
+                let spread = match l.t {
+                    Transfer::Surfaces { spread, .. } => Some(spread),
+                    Transfer::Point { .. } => None,
+                };
+                matches!(
+                    self.verdict(h, l.r, l.s, l.t.partial(), spread).0,
+                    Verdict::Split
+                ) && self.which(h, l.r, l.s).is_some()
             })
             .collect()
     }
@@ -171,17 +186,28 @@ impl Refiner<'_> {
     /// ends then average lit and shadowed parts, and multiplying their
     /// averages counts the shadow twice (a floor element half under a box
     /// is both half dark and half hidden), so the whole magnitude is error.
-    fn verdict(&self, h: &Hierarchy, r: u32, s: u32, partial: bool) -> Verdict {
+    /// `spread`: the pair's form factor spread if known from an earlier
+    /// round; the verdict comes with it.
+    fn verdict(
+        &self,
+        h: &Hierarchy,
+        r: u32,
+        s: u32,
+        partial: bool,
+        spread: Option<Spread>,
+    ) -> (Verdict, Spread) {
         let (nr, ns) = (h.node(r), h.node(s));
+        let mut range = [0.0; 2];
         let power = if !nr.cluster && !ns.cluster {
-            if coplanar(nr, ns) {
-                return Verdict::Drop;
+            if spread.is_none() && coplanar(nr, ns) {
+                return (Verdict::Drop, range);
             }
             let b = self.surface_b(h, s);
             let bmax = b[0].max(b[1]).max_element();
-            let (lo, hi) = ff_range(nr, ns);
+            range = spread.unwrap_or_else(|| ff_range(nr, ns));
+            let [lo, hi] = range;
             if hi.is_nan() || hi <= 0.0 {
-                return Verdict::Drop;
+                return (Verdict::Drop, range);
             }
             // What piecewise-constant irradiance gets wrong over the
             // receiver (the kernel's spread), plus a share of the
@@ -194,22 +220,23 @@ impl Refiner<'_> {
             ((hi - lo) + share * hi) * nr.area * bmax
         } else {
             if flat_coplanar(nr, ns) {
-                return Verdict::Drop;
+                return (Verdict::Drop, range);
             }
             let d = nr.center.distance(ns.center) - nr.radius - ns.radius;
             if d <= 0.0 {
-                return Verdict::Split;
+                return (Verdict::Split, range);
             }
             let i = self.max_intensity(h, s);
             i / (d * d) * nr.area
         };
         // Links that carry nothing yet stay, coarse, for later rounds to
         // weigh with the light that reaches their source by then.
-        if power > self.max_error {
+        let verdict = if power > self.max_error {
             Verdict::Split
         } else {
             Verdict::Accept
-        }
+        };
+        (verdict, range)
     }
 
     fn known(&self, h: &Hierarchy, mut i: u32) -> u32 {
@@ -272,7 +299,7 @@ fn flat_coplanar(r: &Node, s: &Node) -> bool {
 /// The smallest and largest point form factor (either side) over the
 /// receiver: at its centroid and near its corners, where an adjacent source
 /// is seen most.
-fn ff_range(r: &Node, s: &Node) -> (f32, f32) {
+fn ff_range(r: &Node, s: &Node) -> Spread {
     let c = r.center;
     let [a, b, d] = r.tri;
     let near = |p: Vec3| p + (c - p) * 0.05;
@@ -282,8 +309,8 @@ fn ff_range(r: &Node, s: &Node) -> (f32, f32) {
             let f = point_to_triangle_sides(x, r.normal, s.tri);
             f[0].max(f[1])
         })
-        .fold((f32::INFINITY, 0.0f32), |(lo, hi), f| {
-            (lo.min(f), hi.max(f))
+        .fold([f32::INFINITY, 0.0f32], |[lo, hi], f| {
+            [lo.min(f), hi.max(f)]
         })
 }
 
@@ -293,7 +320,7 @@ fn ff_range(r: &Node, s: &Node) -> (f32, f32) {
 /// visible fractions are weighed with (see [`reweigh`]).
 pub fn compute(
     h: &Hierarchy,
-    pairs: &[(u32, u32)],
+    pairs: &[(u32, u32, Spread)],
     engine: &dyn RayEngine,
     rays: usize,
     weight: &(dyn Fn(u32, usize) -> f32 + Sync),
@@ -303,7 +330,7 @@ pub fn compute(
         .map(|chunk| {
             let mut batch = Vec::with_capacity(chunk.len() * rays);
             let mut samples = Vec::with_capacity(batch.capacity());
-            for &(r, s) in chunk {
+            for &(r, s, _) in chunk {
                 let seed = hash3(r, s, 0);
                 for j in 0..rays {
                     let (ray, sample) = shadow_ray(h, r, s, seed, j, rays);
@@ -318,7 +345,7 @@ pub fn compute(
             }
             let mut links = Vec::with_capacity(chunk.len());
             let mut kept = Vec::with_capacity(samples.len());
-            for (k, &(r, s)) in chunk.iter().enumerate() {
+            for (k, &(r, s, spread)) in chunk.iter().enumerate() {
                 let mine = &samples[k * rays..(k + 1) * rays];
                 if !mine.iter().any(|s| s.open) {
                     continue;
@@ -329,7 +356,7 @@ pub fn compute(
                 links.push(Link {
                     r,
                     s,
-                    t: transfer(h, r, s, &vis),
+                    t: transfer(h, r, s, &vis, spread),
                     samples: first,
                 });
             }
@@ -410,7 +437,7 @@ impl Visibility {
     }
 }
 
-fn transfer(h: &Hierarchy, r: u32, s: u32, vis: &Visibility) -> Transfer {
+fn transfer(h: &Hierarchy, r: u32, s: u32, vis: &Visibility, spread: Spread) -> Transfer {
     let (nr, ns) = (h.node(r), h.node(s));
     if nr.cluster || ns.cluster {
         let d = ns.center - nr.center;
@@ -438,6 +465,7 @@ fn transfer(h: &Hierarchy, r: u32, s: u32, vis: &Visibility) -> Transfer {
     Transfer::Surfaces {
         f: f.map(|row| row.map(|v| v * w)),
         vis: vis.pair,
+        spread,
     }
 }
 
@@ -467,8 +495,7 @@ fn sample_point(h: &Hierarchy, mut i: u32, seed: u32, j: usize, n: usize) -> (Ve
     let mut u = (j as f32 + unit(hash3(seed, j as u32, 1))) / n as f32;
     while h.node(i).cluster {
         let kids = &h.node(i).children;
-        let total: f32 = kids.iter().map(|&c| h.node(c).area).sum();
-        let mut pick = u * total;
+        let mut pick = u * h.node(i).area;
         let mut next = kids[kids.len() - 1];
         for &c in kids {
             let a = h.node(c).area;

@@ -109,6 +109,7 @@ mod lookup {
                         object: 0,
                         vertices: c.map(|k| records[k as usize].position),
                         corners: c,
+                        back: c,
                         reflectance: Vec3::splat(0.5),
                         emission: Vec3::ZERO,
                         two_sided: false,
@@ -187,6 +188,7 @@ mod lookup {
             .map(|p| Patch {
                 vertices: p.vertices.map(|v| Vec3::new(0.0, v.y, v.x)),
                 corners: p.corners.map(|c| c + floor as u32),
+                back: p.back.map(|c| c + floor as u32),
                 ..*p
             })
             .collect();
@@ -435,7 +437,7 @@ fn gathered_indirect(scene: &Scene, s: &Simplified, t: f32) -> Vec<Vec3> {
     let mut centre = vec![(Vec3::ZERO, 0.0f32); s.records.len()];
     for p in &s.patches {
         let c = (p.vertices[0] + p.vertices[1] + p.vertices[2]) / 3.0;
-        for &k in &p.corners {
+        for &k in p.corners.iter().chain(&p.back) {
             centre[k as usize].0 += c;
             centre[k as usize].1 += 1.0;
         }

@@ -59,6 +59,17 @@ fn furnace(dir: &Path, rho: f32, e: f32) -> Scene {
     load(&dir.join("scene.toml"))
 }
 
+/// Which records see light in the furnace scenes: all but those of the
+/// outer unit cube (object 0) that face away from its centre, into empty
+/// space, where nothing reaches them.
+fn facing_in(scene: &Scene) -> Vec<bool> {
+    Simplified::whole(scene)
+        .records
+        .iter()
+        .map(|r| r.object != 0 || r.normal.dot(Vec3::splat(0.5) - r.position) > 0.0)
+        .collect()
+}
+
 #[test]
 fn furnace_indirect_matches_the_closed_form() {
     let dir = tempfile::tempdir().unwrap();
@@ -72,7 +83,12 @@ fn furnace_indirect_matches_the_closed_form() {
             "furnace rho = {rho}: {} iterations, residual {:.2e}, {} elements, {} links",
             sol.stats.iterations, sol.stats.residual, sol.stats.elements, sol.stats.links
         );
+        let lit = facing_in(&scene);
         for (i, (ind, dir)) in sol.indirect.iter().zip(&sol.direct).enumerate() {
+            if !lit[i] {
+                assert_eq!((*ind, *dir), (Vec3::ZERO, Vec3::ZERO), "record {i}");
+                continue;
+            }
             for c in 0..3 {
                 assert!(
                     (ind[c] / want - 1.0).abs() < 0.01,
@@ -131,6 +147,7 @@ fn reflectance_of_one_is_an_error_naming_the_object() {
                 object: 0,
                 vertices: v,
                 corners: [0, 1, 2],
+                back: [0, 1, 2],
                 reflectance: Vec3::new(0.5, rho, 0.5),
                 emission: Vec3::ONE,
                 two_sided: false,
@@ -400,6 +417,136 @@ fn monte_carlo_indirect(
     sum / paths as f32
 }
 
+/// A closed room lit only through a skylight by a lamp above the roof: the
+/// ceiling's outside is lit directly and brightly, its inside only by light
+/// the floor and walls reflect. Each side must keep its own records; with
+/// one record per corner, the brighter outside was reported and the inside
+/// of a sunlit room came out black.
+#[test]
+fn a_ceiling_lit_from_outside_keeps_its_inside_dark_only_where_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut obj = String::new();
+    let mut quad = |group: &str, c: [[f32; 3]; 4]| {
+        obj.push_str(&format!("o {group}\n"));
+        for v in c {
+            obj.push_str(&format!("v {} {} {}\n", v[0], v[1], v[2]));
+        }
+        obj.push_str("f -4 -3 -2 -1\n");
+    };
+    let (w, h) = (4.0, 3.0);
+    quad(
+        "floor",
+        [[0.0, 0.0, 0.0], [0.0, 0.0, w], [w, 0.0, w], [w, 0.0, 0.0]],
+    );
+    quad(
+        "walls",
+        [[0.0, 0.0, 0.0], [w, 0.0, 0.0], [w, h, 0.0], [0.0, h, 0.0]],
+    );
+    quad(
+        "walls",
+        [[0.0, 0.0, w], [0.0, h, w], [w, h, w], [w, 0.0, w]],
+    );
+    quad(
+        "walls",
+        [[0.0, 0.0, 0.0], [0.0, h, 0.0], [0.0, h, w], [0.0, 0.0, w]],
+    );
+    quad(
+        "walls",
+        [[w, 0.0, 0.0], [w, 0.0, w], [w, h, w], [w, h, 0.0]],
+    );
+    // The ceiling around a 1 m skylight in its middle.
+    for [x0, z0, x1, z1] in [
+        [0.0, 0.0, w, 1.5],
+        [0.0, 2.5, w, w],
+        [0.0, 1.5, 1.5, 2.5],
+        [2.5, 1.5, w, 2.5],
+    ] {
+        quad(
+            "ceiling",
+            [[x0, h, z0], [x1, h, z0], [x1, h, z1], [x0, h, z1]],
+        );
+    }
+    // Facing down onto the roof and through the skylight.
+    quad(
+        "lamp",
+        [
+            [1.0, 3.5, 1.0],
+            [3.0, 3.5, 1.0],
+            [3.0, 3.5, 3.0],
+            [1.0, 3.5, 3.0],
+        ],
+    );
+    std::fs::write(dir.path().join("room.obj"), obj).unwrap();
+    let mut toml = String::from(
+        "[[materials]]\nname = \"white\"\ntype = \"diffuse\"\nreflectance = [0.7, 0.7, 0.7]\n\n\
+         [[materials]]\nname = \"lamp\"\ntype = \"diffuse\"\nreflectance = [0, 0, 0]\nemission = [10, 10, 10]\n",
+    );
+    for (name, material) in [
+        ("floor", "white"),
+        ("walls", "white"),
+        ("ceiling", "white"),
+        ("lamp", "lamp"),
+    ] {
+        toml.push_str(&format!(
+            "\n[[objects]]\nname = \"{name}\"\nmesh = \"room.obj\"\ngroup = \"{name}\"\nmaterial = \"{material}\"\n"
+        ));
+    }
+    std::fs::write(dir.path().join("scene.toml"), toml).unwrap();
+    let scene = load(&dir.path().join("scene.toml"));
+    let ceiling = scene
+        .objects
+        .iter()
+        .position(|o| o.name == "ceiling")
+        .unwrap() as u32;
+    let mut e = engine(&scene, 0.0);
+    let quality = Quality::new(0.5).unwrap();
+    let s = rangewalk::radiosity::simplify(&scene, e.as_mut(), quality).unwrap();
+    let sol = solve(&scene, &s, e.as_ref(), 0.0, quality).unwrap();
+    let (mut inside, mut outside) = (Vec::new(), Vec::new());
+    for (k, r) in s.records.iter().enumerate() {
+        if r.object == ceiling {
+            let side = if r.normal.y < 0.0 {
+                &mut inside
+            } else {
+                &mut outside
+            };
+            side.push((k, r.position));
+        }
+    }
+    assert!(!inside.is_empty() && inside.len() == outside.len());
+    // The lamp is behind the inside's plane: no direct light there at all,
+    // and some indirect light everywhere.
+    for &(k, p) in &inside {
+        assert_eq!(sol.direct[k], Vec3::ZERO, "inside at {p}");
+        assert!(sol.indirect[k].x > 0.0, "inside at {p}: no indirect light");
+    }
+    let lit_outside = outside
+        .iter()
+        .filter(|&&(k, _)| sol.direct[k].x > 0.0)
+        .count();
+    assert!(
+        lit_outside > outside.len() / 2,
+        "{lit_outside} of {} outside records lit",
+        outside.len()
+    );
+    // One inside record against the Monte Carlo gather (19% low measured,
+    // the occluder bias noted at `MC_TOLERANCE`).
+    let &(k, p) = inside
+        .iter()
+        .min_by(|a, b| {
+            a.1.distance(Vec3::new(1.0, h, 1.0))
+                .total_cmp(&b.1.distance(Vec3::new(1.0, h, 1.0)))
+        })
+        .unwrap();
+    let mc = monte_carlo_indirect(&scene, e.as_ref(), p, -Vec3::Y, 40_000).element_sum();
+    let hr = sol.indirect[k].element_sum();
+    println!("ceiling inside at {p}: radiosity {hr}, Monte Carlo {mc}");
+    assert!(
+        (hr / mc - 1.0).abs() < 0.25,
+        "radiosity {hr} vs Monte Carlo {mc}"
+    );
+}
+
 /// The whole object-space pipeline (simplification, then the solve on its
 /// tessellated patches) against the Monte Carlo gather at the records
 /// nearest to points inside walls, floor, ceiling and a box face. The
@@ -430,17 +577,24 @@ fn simplified_cornell_indirect_is_unbiased() {
     println!("{} patches, {:?}", s.patches.len(), sol.stats);
     let mut errors = Vec::new();
     for (obj, p) in points {
+        // Of the two records at each corner, the one on the lit side: the
+        // short box's top faces up, everything else faces the centre.
+        let lit = |r: &RecordPoint| {
+            let towards = if obj == 6 {
+                Vec3::Y
+            } else {
+                centre - r.position
+            };
+            r.object == obj as u32 && r.normal.dot(towards) > 0.0
+        };
         let r = (0..s.records.len())
-            .filter(|&r| s.records[r].object == obj as u32)
+            .filter(|&r| lit(&s.records[r]))
             .min_by(|&a, &b| {
                 let d = |r: usize| s.records[r].position.distance(p);
                 d(a).total_cmp(&d(b))
             })
             .unwrap();
         let (x, n) = (s.records[r].position, s.records[r].normal);
-        // The short box's top faces up, everything else faces the centre.
-        let lit = if obj == 6 { x + Vec3::Y } else { centre };
-        let n = if n.dot(lit - x) < 0.0 { -n } else { n };
         let mc = monte_carlo_indirect(&scene, e.as_ref(), x, n, 40_000).element_sum();
         let hr = sol.indirect[r].element_sum();
         let err = hr / mc - 1.0;
@@ -513,10 +667,13 @@ fn cornell_indirect_agrees_with_monte_carlo() {
         let r = s
             .records
             .iter()
-            .position(|r| r.object == obj as u32 && r.position.distance(c) < 1e-3)
-            .expect("a record at the split point");
+            .position(|r| {
+                r.object == obj as u32
+                    && r.position.distance(c) < 1e-3
+                    && r.normal.dot(lit - c) > 0.0
+            })
+            .expect("a record at the split point, on its lit side");
         let n = s.records[r].normal;
-        let n = if n.dot(lit - c) < 0.0 { -n } else { n };
         let mc = monte_carlo_indirect(&scene, e.as_ref(), c, n, 40_000);
         let hr = sol.indirect[r];
         let err = (hr - mc).abs().max_element() / mc.max_element();
@@ -595,9 +752,12 @@ fn furnace_with_an_occluder_stays_uniform() {
         let scene = load(&dir.path().join("scene.toml"));
         let sol = run(&scene, 0.5);
         let want = PI * rho / (1.0 - rho);
+        let lit = facing_in(&scene);
         let worst = sol
             .indirect
             .iter()
+            .zip(lit)
+            .filter_map(|(v, lit)| lit.then_some(v))
             .map(|v| (v.x / want - 1.0).abs())
             .fold(0.0f32, f32::max);
         println!(

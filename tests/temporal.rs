@@ -299,7 +299,7 @@ mod bake {
         load(&dir).unwrap();
 
         // Wrong version.
-        let v = original.replace("version = 1", "version = 99");
+        let v = original.replace("version = 2", "version = 99");
         assert_ne!(v, original);
         fs::write(&manifest, v).unwrap();
         expect_error(&dir, "manifest.toml", &["version", "99"]);

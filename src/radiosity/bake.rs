@@ -21,13 +21,13 @@ use super::{IndirectSolution, Patch, RecordPoint, Simplified, SimplifyStats, Sol
 /// Identifies a bake manifest.
 pub const FORMAT: &str = "rangewalk-bake";
 /// Bumped whenever the layout changes; older or newer bakes are refused.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 pub const MANIFEST: &str = "manifest.toml";
 const PATCHES: &str = "patches.bin";
 const RECORDS: &str = "records.bin";
 const IRRADIANCE: &str = "irradiance.bin";
 /// Bytes per stored element.
-const PATCH_BYTES: usize = 4 * (1 + 9 + 3 + 3 + 3 + 1);
+const PATCH_BYTES: usize = 4 * (1 + 9 + 3 + 3 + 3 + 3 + 1);
 const RECORD_BYTES: usize = 4 * (1 + 3 + 3);
 const VEC_BYTES: usize = 12;
 
@@ -257,7 +257,7 @@ pub fn load_with_info(dir: &Path) -> Result<(Simplified, TimeSeries, BakeInfo)> 
     let patches = decode_patches(&patches_raw);
     let pfile = dir.join(PATCHES);
     for (i, p) in patches.iter().enumerate() {
-        if let Some(c) = p.corners.iter().find(|&&c| c as usize >= n) {
+        if let Some(c) = p.corners.iter().chain(&p.back).find(|&&c| c as usize >= n) {
             bail!(
                 "{}: patch {i} names record {c}, but there are {n} records",
                 pfile.display()
@@ -472,7 +472,7 @@ fn encode_patches(patches: &[Patch]) -> Vec<u8> {
         for v in p.vertices {
             put_vec(&mut out, v);
         }
-        for c in p.corners {
+        for c in p.corners.into_iter().chain(p.back) {
             put_u32(&mut out, c);
         }
         put_vec(&mut out, p.reflectance);
@@ -520,9 +520,10 @@ fn decode_patches(bytes: &[u8]) -> Vec<Patch> {
                 object: w[0],
                 vertices: [v(1), v(4), v(7)],
                 corners: [w[10], w[11], w[12]],
-                reflectance: v(13),
-                emission: v(16),
-                two_sided: w[19] != 0,
+                back: [w[13], w[14], w[15]],
+                reflectance: v(16),
+                emission: v(19),
+                two_sided: w[22] != 0,
             }
         })
         .collect()

@@ -86,18 +86,25 @@ impl IrradianceCache {
             let [a, b, c] = p.vertices;
             let longest = (b - a).length().max((c - b).length()).max((a - c).length());
             let share = p.area() as f64 / 3.0;
-            for &i in &p.corners {
-                let i = i as usize;
-                if i >= n || !longest.is_finite() {
-                    continue;
-                }
-                radius[i] = radius[i].max(longest);
-                if share.is_finite() {
-                    area[i] += share;
-                }
-                for &j in &p.corners {
-                    if j as usize != i && (j as usize) < n && !neighbours[i].contains(&j) {
-                        neighbours[i].push(j);
+            let sides = if p.back == p.corners {
+                &[p.corners][..]
+            } else {
+                &[p.corners, p.back][..]
+            };
+            for side in sides {
+                for &i in side {
+                    let i = i as usize;
+                    if i >= n || !longest.is_finite() {
+                        continue;
+                    }
+                    radius[i] = radius[i].max(longest);
+                    if share.is_finite() {
+                        area[i] += share;
+                    }
+                    for &j in side {
+                        if j as usize != i && (j as usize) < n && !neighbours[i].contains(&j) {
+                            neighbours[i].push(j);
+                        }
                     }
                 }
             }

@@ -53,10 +53,16 @@ pub struct Patch {
     pub object: u32,
     /// Object-space corners; the winding gives the front side.
     pub vertices: [Vec3; 3],
-    /// The records at the three corners (indices into
+    /// The records of the front side at the three corners (indices into
     /// [`Simplified::records`]); patches that share an edge in one plane
     /// share its records, which makes the output continuous there.
     pub corners: [u32; 3],
+    /// The records of the back side (normal reversed). Every surface
+    /// reflects on both sides, and which one a viewer sees is not known
+    /// here: a wall lit by the sun outside is seen dark from inside. The
+    /// same as `corners` where a record stands for both sides; it then
+    /// reports the side that receives more light.
+    pub back: [u32; 3],
     /// Diffuse albedo (textures averaged, the specular part of glossy
     /// materials and mirrors left to the renderer's traced rays).
     pub reflectance: Vec3,
@@ -178,7 +184,8 @@ impl Simplified {
 
     /// Patches from object-space triangles `(object, corners)`, with
     /// materials from `scene`. Corners of one object that coincide and face
-    /// the same way share one record; zero-area triangles are skipped.
+    /// the same way share one pair of records (front, then back);
+    /// zero-area triangles are skipped.
     /// Statistics are left for the caller to fill in.
     pub fn from_triangles(
         scene: &Scene,
@@ -194,6 +201,7 @@ impl Simplified {
                 object,
                 vertices,
                 corners: [0; 3],
+                back: [0; 3],
                 reflectance: diffuse_albedo(&m.bsdf),
                 emission: m.emission.map_or(Vec3::ZERO, |e| e.radiance),
                 two_sided: m.emission.is_some_and(|e| e.two_sided),
@@ -208,14 +216,18 @@ impl Simplified {
             let qn = (n * 1000.0).round().as_ivec3().to_array();
             for (k, &p) in vertices.iter().enumerate() {
                 let qp = (p / scale).round().as_i64vec3().to_array();
-                patch.corners[k] = *index.entry((object, qp, qn)).or_insert_with(|| {
-                    records.push(RecordPoint {
-                        object,
-                        position: p,
-                        normal: n,
-                    });
-                    (records.len() - 1) as u32
+                let front = *index.entry((object, qp, qn)).or_insert_with(|| {
+                    for normal in [n, -n] {
+                        records.push(RecordPoint {
+                            object,
+                            position: p,
+                            normal,
+                        });
+                    }
+                    (records.len() - 2) as u32
                 });
+                patch.corners[k] = front;
+                patch.back[k] = front + 1;
             }
             patches.push(patch);
         }
@@ -254,13 +266,25 @@ mod tests {
         let s = Simplified::whole(&scene);
         let tris: usize = scene.objects.iter().map(|o| o.mesh.triangles.len()).sum();
         assert_eq!(s.patches.len(), tris);
-        // The floor is one quad: two triangles, four records.
+        // The floor is one quad: two triangles, four corners, a front and a
+        // back record at each.
         let floor: Vec<&Patch> = s.patches.iter().filter(|p| p.object == 0).collect();
         assert_eq!(floor.len(), 2);
         let mut corners: Vec<u32> = floor.iter().flat_map(|p| p.corners).collect();
         corners.sort();
         corners.dedup();
         assert_eq!(corners.len(), 4);
+        for p in &floor {
+            for k in 0..3 {
+                let (f, b) = (
+                    &s.records[p.corners[k] as usize],
+                    &s.records[p.back[k] as usize],
+                );
+                assert_eq!(f.position, b.position);
+                assert_eq!(f.normal, -b.normal);
+                assert!(f.normal.dot(p.normal()) > 0.99);
+            }
+        }
         // A box's faces meet at right angles: no record is shared between
         // faces, so each of its 5 quads has 4 of its own.
         let short = s.patches.iter().filter(|p| p.object == 6);

@@ -114,18 +114,26 @@ impl TimeSeries {
 }
 
 /// Relative luminance RMS of `b - a` and the fraction of records whose
-/// luminance changed by at most `bound` times the mean.
+/// luminance changed by at most `bound` times the mean, over the records
+/// lit in either solution: the unlit sides of surfaces (a wall's outside,
+/// a box's inside) would otherwise dilute both.
 pub fn compare(a: &[Vec3], b: &[Vec3], bound: f64) -> (f64, f64) {
-    let n = a.len().min(b.len());
+    let y = |v: Vec3| 0.2126 * v.x as f64 + 0.7152 * v.y as f64 + 0.0722 * v.z as f64;
+    let lit: Vec<(f64, f64)> = a
+        .iter()
+        .zip(b)
+        .map(|(&a, &b)| (y(a), y(b)))
+        .filter(|&(a, b)| a != 0.0 || b != 0.0)
+        .collect();
+    let n = lit.len();
     if n == 0 {
         return (0.0, 1.0);
     }
-    let y = |v: Vec3| 0.2126 * v.x as f64 + 0.7152 * v.y as f64 + 0.0722 * v.z as f64;
     let (mut sq, mut sum) = (0.0, 0.0);
-    for (&a, &b) in a.iter().zip(b) {
-        let d = y(b) - y(a);
+    for &(a, b) in &lit {
+        let d = b - a;
         sq += d * d;
-        sum += 0.5 * (y(a) + y(b));
+        sum += 0.5 * (a + b);
     }
     let (rms, mean) = ((sq / n as f64).sqrt(), sum / n as f64);
     if rms == 0.0 {
@@ -135,11 +143,7 @@ pub fn compare(a: &[Vec3], b: &[Vec3], bound: f64) -> (f64, f64) {
         return (f64::INFINITY, 0.0);
     }
     let tol = bound * mean.abs();
-    let unchanged = a
-        .iter()
-        .zip(b)
-        .filter(|(&a, &b)| (y(b) - y(a)).abs() <= tol)
-        .count();
+    let unchanged = lit.iter().filter(|(a, b)| (b - a).abs() <= tol).count();
     (rms / mean.abs(), unchanged as f64 / n as f64)
 }
 

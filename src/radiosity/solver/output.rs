@@ -9,10 +9,9 @@ use crate::radiosity::Simplified;
 /// Irradiance `(indirect, direct)` at every record: the area-weighted
 /// average over the leaf elements that touch the record's point, over all
 /// patches sharing it, so that neighbouring patches agree on shared edges.
-///
-/// A record carries one normal but its patches reflect on both sides; it
-/// reports the side that receives more light (the inside of a closed room
-/// whatever way its walls were wound).
+/// A patch's front records get its front side, its back records its back
+/// side; a record that stands for both sides (`back == corners`) reports
+/// the side that receives more light.
 pub fn records(
     s: &Simplified,
     h: &Hierarchy,
@@ -21,34 +20,46 @@ pub fn records(
     direct: &[[Vec3; 2]],
 ) -> (Vec<Vec3>, Vec<Vec3>) {
     let n = s.records.len();
-    // Per record and side: Σ A·indirect, Σ A·direct, Σ A.
+    // Per record and side: Σ A·indirect, Σ A·direct, Σ A; and which sides
+    // the patches assign it (bit 0 front, bit 1 back).
     let mut acc = vec![[(Vec3::ZERO, Vec3::ZERO); 2]; n];
     let mut weight = vec![0.0f32; n];
+    let mut role = vec![0u8; n];
     for (p, patch) in s.patches.iter().enumerate() {
-        for (k, &rec) in patch.corners.iter().enumerate() {
+        for k in 0..3 {
             let leaf = h.corner_leaf(p, k);
             if leaf == NONE {
                 continue;
             }
+            let (front, back) = (patch.corners[k] as usize, patch.back[k] as usize);
+            role[front] |= 1;
+            role[back] |= 2;
             let a = h.node(leaf).area;
             let l = leaf_of(leaf);
-            for side in 0..2 {
-                acc[rec as usize][side].0 += indirect[l][side] * a;
-                acc[rec as usize][side].1 += direct[l][side] * a;
+            let both = [front, back];
+            for &rec in if front == back { &both[..1] } else { &both[..] } {
+                for side in 0..2 {
+                    acc[rec][side].0 += indirect[l][side] * a;
+                    acc[rec][side].1 += direct[l][side] * a;
+                }
+                weight[rec] += a;
             }
-            weight[rec as usize] += a;
         }
     }
     let mut ind = Vec::with_capacity(n);
     let mut dir = Vec::with_capacity(n);
-    for (sides, w) in acc.into_iter().zip(weight) {
+    for ((sides, w), role) in acc.into_iter().zip(weight).zip(role) {
         if w <= 0.0 {
             ind.push(Vec3::ZERO);
             dir.push(Vec3::ZERO);
             continue;
         }
         let total = |s: usize| (sides[s].0 + sides[s].1).element_sum();
-        let side = usize::from(total(1) > total(0));
+        let side = match role {
+            1 => 0,
+            2 => 1,
+            _ => usize::from(total(1) > total(0)),
+        };
         ind.push(sides[side].0 / w);
         dir.push(sides[side].1 / w);
     }

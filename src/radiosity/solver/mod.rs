@@ -47,6 +47,9 @@ pub struct Params {
     pub rounds: usize,
     /// Relative residual the linear solver stops at.
     pub tolerance: f64,
+    /// The same for the rounds before the last, whose solutions only guide
+    /// refinement.
+    pub oracle_tolerance: f64,
     pub max_iterations: usize,
 }
 
@@ -60,6 +63,7 @@ impl Params {
             direct_points: 1 + (3.0 * q).round() as usize,
             rounds: if q < 0.5 { 2 } else { 3 },
             tolerance: 1e-5,
+            oracle_tolerance: 1e-3,
             max_iterations: 500,
         }
     }
@@ -180,14 +184,13 @@ pub fn solve(
             .zip(&rho)
             .map(|(d, &r)| [d[0] * r, d[1] * r])
             .collect();
-        let solved = linear::solve(
-            &op,
-            &rho,
-            &b,
-            guess,
-            params.tolerance,
-            params.max_iterations,
-        );
+        // Rounds before the last only weigh the oracle's next verdicts.
+        let tolerance = if last {
+            params.tolerance
+        } else {
+            params.oracle_tolerance
+        };
+        let solved = linear::solve(&op, &rho, &b, guess, tolerance, params.max_iterations);
         stats.iterations += solved.iterations;
         stats.residual = solved.residual;
         if last {

@@ -66,7 +66,7 @@ pub struct Operator<'a> {
 
 impl<'a> Operator<'a> {
     pub fn new(h: &'a Hierarchy, mut links: Vec<Link>) -> Self {
-        links.sort_unstable_by_key(|l| (l.r, l.s));
+        links.par_sort_unstable_by_key(|l| (l.r, l.s));
         let mut groups = Vec::new();
         let mut start = 0;
         for i in 1..=links.len() {

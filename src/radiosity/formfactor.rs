@@ -98,9 +98,10 @@ pub fn point_to_polygon(x: Vec3, n: Vec3, poly: &Polygon) -> f32 {
     }
 }
 
-/// `atan2(y, x)` for `y >= 0`, within 5e-7 rad (two float steps at π): the library's atan2 took an
-/// eighth of a radiosity solve. A degree-7 polynomial in `t²` for `atan t`
-/// on [0, 1] (Chebyshev fit), with the octant symmetries.
+/// `atan2(y, x)` for `y >= 0`, within 5e-7 rad (two float steps at π):
+/// the library's atan2 took an eighth of a radiosity solve. A degree-7
+/// polynomial in `t²` for `atan t` on [0, 1] (Chebyshev fit), with the
+/// octant symmetries.
 fn angle(y: f32, x: f32) -> f32 {
     const C: [f32; 8] = [
         0.999_999_9,

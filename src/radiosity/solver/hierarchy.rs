@@ -1,9 +1,11 @@
 //! Elements and clusters: the two hierarchies hierarchical radiosity links.
 //!
 //! Below each patch, surface elements are refined lazily by 4-way midpoint
-//! subdivision down to a minimum area. Above the patches, a bounding-volume
-//! hierarchy groups them into clusters, so that refinement can start from
-//! one self link of the root instead of linking all pairs of patches.
+//! subdivision down to a minimum area. Above the patches, bounding-volume
+//! hierarchies group them into clusters, so that refinement can start from
+//! one self link of the root instead of linking all pairs of patches:
+//! first one per orientation, so that most clusters are flat, then one
+//! over those.
 
 use std::collections::BTreeMap;
 
@@ -60,7 +62,7 @@ pub struct Hierarchy {
 /// Surfaces whose normals agree to this cosine count as facing one way
 /// (about 0.25 degrees; tessellation keeps a plane's normals equal to
 /// rounding).
-const FLAT_COS: f32 = 0.999_99;
+pub const FLAT_COS: f32 = 0.999_99;
 
 /// Normals are binned to 1/NORMAL_BINS per component to find the surfaces
 /// that face one way.

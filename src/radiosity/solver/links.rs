@@ -4,7 +4,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::hierarchy::{Hierarchy, Node};
+use super::hierarchy::{Hierarchy, Node, FLAT_COS};
 use super::linear::NodeRadiosity;
 use crate::accel::{offset_origin, Ray, RayEngine};
 use crate::radiosity::formfactor::{point_to_triangle_sides, receiver_points};
@@ -284,9 +284,9 @@ fn flat_coplanar(r: &Node, s: &Node) -> bool {
         return false;
     }
     let c = r.normal.dot(s.normal);
-    let along = if c >= 0.999_99 {
+    let along = if c >= FLAT_COS {
         s.plane
-    } else if c <= -0.999_99 {
+    } else if c <= -FLAT_COS {
         [-s.plane[1], -s.plane[0]]
     } else {
         return false;

@@ -142,7 +142,7 @@ mod lookup {
         });
         let cache = IrradianceCache::new(&s, &values);
         for (r, &v) in s.records.iter().zip(&values) {
-            assert_eq!(cache.irradiance(0, r.position, r.normal), v);
+            assert_eq!(cache.irradiance(0, true, r.position, r.normal), v);
         }
     }
 
@@ -157,7 +157,7 @@ mod lookup {
             let cache = IrradianceCache::new(&s, &values);
             for (x, y) in points(200) {
                 let p = Vec3::new(x * 4.0 * scale, y * 4.0 * scale, 0.0);
-                let got = cache.irradiance(0, p, Vec3::Z);
+                let got = cache.irradiance(0, true, p, Vec3::Z);
                 let want = f(p);
                 assert!(
                     ((got - want) / want).abs().max_element() < 1e-4,
@@ -197,20 +197,20 @@ mod lookup {
         values.extend(vec![Vec3::splat(100.0); floor]);
         let cache = IrradianceCache::new(&s, &values);
         for (x, y) in points(100) {
-            let on_floor = cache.irradiance(0, Vec3::new(0.05 * x, y, 0.0), Vec3::Z);
+            let on_floor = cache.irradiance(0, true, Vec3::new(0.05 * x, y, 0.0), Vec3::Z);
             let near = |a: Vec3, b: Vec3| ((a - b) / b).abs().max_element() < 1e-6;
             assert!(
                 near(on_floor, Vec3::ONE),
                 "floor at x = {}: {on_floor}",
                 0.05 * x
             );
-            let on_wall = cache.irradiance(0, Vec3::new(0.0, y, 0.05 * x), Vec3::X);
+            let on_wall = cache.irradiance(0, true, Vec3::new(0.0, y, 0.05 * x), Vec3::X);
             assert!(near(on_wall, Vec3::splat(100.0)), "{on_wall}");
         }
         // A normal half way between the faces is 45° from both: neither
         // face's records apply, and the nearest-record fallback gives a
         // value between them.
-        let mid = cache.irradiance(0, Vec3::ZERO, Vec3::new(1.0, 0.0, 1.0).normalize());
+        let mid = cache.irradiance(0, true, Vec3::ZERO, Vec3::new(1.0, 0.0, 1.0).normalize());
         assert!(
             mid.min_element() >= 1.0 && mid.max_element() <= 100.0,
             "{mid}"
@@ -223,12 +223,18 @@ mod lookup {
         let cache = IrradianceCache::new(&s, &values);
         // Area-weighted mean of a linear field over the square: its centre.
         assert!((cache.average() - Vec3::splat(2.0)).length() < 1e-5);
-        assert_eq!(cache.irradiance(7, Vec3::ZERO, Vec3::Z), cache.average());
+        assert_eq!(
+            cache.irradiance(7, true, Vec3::ZERO, Vec3::Z),
+            cache.average()
+        );
         // Facing away from every record.
-        assert_eq!(cache.irradiance(0, Vec3::ONE, -Vec3::Z), cache.average());
+        assert_eq!(
+            cache.irradiance(0, true, Vec3::ONE, -Vec3::Z),
+            cache.average()
+        );
         // Out of every record's range on the plane: the nearest records
         // (value 3 at x = 2), not the average.
-        let far = cache.irradiance(0, Vec3::new(4.5, 1.0, 0.0), Vec3::Z);
+        let far = cache.irradiance(0, true, Vec3::new(4.5, 1.0, 0.0), Vec3::Z);
         assert!(far.x > 2.8 && far.x <= 3.0, "{far}");
     }
 
@@ -245,17 +251,47 @@ mod lookup {
         for p in [Vec3::ZERO, Vec3::ONE, Vec3::NAN, Vec3::splat(1e30), Vec3::X] {
             for n in [Vec3::Z, Vec3::ZERO, Vec3::NAN, -Vec3::Z, Vec3::splat(1e-30)] {
                 for object in [0, 1, u32::MAX] {
-                    let e = cache.irradiance(object, p, n);
+                    let e = cache.irradiance(object, true, p, n);
                     assert!(e.is_finite() && e.min_element() >= 0.0, "{p} {n}: {e}");
                 }
             }
         }
         let empty = IrradianceCache::new(&Simplified::default(), &[]);
-        assert_eq!(empty.irradiance(0, Vec3::ZERO, Vec3::Z), Vec3::ZERO);
+        assert_eq!(empty.irradiance(0, true, Vec3::ZERO, Vec3::Z), Vec3::ZERO);
         // More values than records, or fewer: no panic.
         let short = IrradianceCache::new(&s, &values[..3]);
-        assert!(short.irradiance(0, Vec3::ONE, Vec3::Z).is_finite());
+        assert!(short.irradiance(0, true, Vec3::ONE, Vec3::Z).is_finite());
     }
+}
+
+/// Each side of a surface is looked up in its own records, which sit at the
+/// same points as the other side's: the Cornell box's floor with 1 on its
+/// front records and 5 on its back ones gives 1 and 5, never a blend; and
+/// the scene average that stands in for missing records leaves the unlit
+/// (zero) sides out.
+#[test]
+fn each_side_is_looked_up_in_its_own_records() {
+    let scene = load("cornell-box");
+    let s = Simplified::whole(&scene);
+    let mut values = vec![Vec3::ZERO; s.records.len()];
+    for p in s.patches.iter().filter(|p| p.object == 0) {
+        for k in 0..3 {
+            values[p.corners[k] as usize] = Vec3::ONE;
+            values[p.back[k] as usize] = Vec3::splat(5.0);
+        }
+    }
+    let cache = IrradianceCache::new(&s, &values);
+    let floor = s.patches.iter().find(|p| p.object == 0).unwrap();
+    let n = floor.normal();
+    let centre = (floor.vertices[0] + floor.vertices[1] + floor.vertices[2]) / 3.0;
+    let close = |a: Vec3, b: Vec3| (a - b).abs().max_element() < 1e-5;
+    assert!(close(cache.irradiance(0, true, centre, n), Vec3::ONE));
+    assert!(close(
+        cache.irradiance(0, false, centre, -n),
+        Vec3::splat(5.0)
+    ));
+    // The average is over the floor's two sides alone, equal in area.
+    assert!((cache.average() - Vec3::splat(3.0)).abs().max_element() < 1e-4);
 }
 
 /// With nothing in the cache, multipass is direct light only: the path

@@ -23,9 +23,10 @@
 //! Where no record is in range, the nearest records facing the same way
 //! are blended by `1/e_i`; an object without records (pruned by the
 //! simplification) or a point facing away from all of them gets the
-//! scene's area-weighted average indirect irradiance, as Radiance's `-av`
-//! ambient value stands in for a missing cache.
+//! area-weighted average over the lit records, as Radiance's `-av` ambient
+//! value stands in for a missing cache.
 
+use std::collections::BTreeMap;
 use std::num::NonZero;
 
 use glam::Vec3;
@@ -43,9 +44,11 @@ const FALLBACK_NEAREST: usize = 8;
 /// The records of one time, searchable per object in object space.
 pub struct IrradianceCache {
     records: Vec<Entry>,
-    /// Per object, the records grouped by radius (within a factor of two),
-    /// so that each group can be searched with its own range.
-    objects: Vec<Vec<Level>>,
+    /// Per object and side (front, back), the records grouped by radius
+    /// (within a factor of two), so that each group can be searched with
+    /// its own range. A side's search never meets the other side's records,
+    /// which sit at the same points.
+    objects: Vec<[Vec<Level>; 2]>,
     average: Vec3,
 }
 
@@ -109,14 +112,19 @@ impl IrradianceCache {
                 }
             }
         }
-        let total_area: f64 = area.iter().sum();
-        let average = if n == 0 {
+        // Over the records light reaches: the unlit sides (a room's outside,
+        // a box's inside) are no part of what a missing record stands for.
+        let lit: Vec<usize> = (0..n).filter(|&i| value(i) != Vec3::ZERO).collect();
+        let total_area: f64 = lit.iter().map(|&i| area[i]).sum();
+        let average = if lit.is_empty() {
             Vec3::ZERO
         } else if total_area > 0.0 {
-            let s = (0..n).fold(glam::DVec3::ZERO, |s, i| s + value(i).as_dvec3() * area[i]);
+            let s = lit
+                .iter()
+                .fold(glam::DVec3::ZERO, |s, &i| s + value(i).as_dvec3() * area[i]);
             (s / total_area).as_vec3()
         } else {
-            (0..n).map(value).sum::<Vec3>() / n as f32
+            lit.iter().map(|&i| value(i)).sum::<Vec3>() / lit.len() as f32
         };
 
         let records: Vec<Entry> = (0..n)
@@ -143,12 +151,13 @@ impl IrradianceCache {
     }
 
     /// Indirect irradiance at object-space point `p` with unit normal `n` on
-    /// `object`.
-    pub fn irradiance(&self, object: u32, p: Vec3, n: Vec3) -> Vec3 {
+    /// the `front` (by winding) or back side of `object`.
+    pub fn irradiance(&self, object: u32, front: bool, p: Vec3, n: Vec3) -> Vec3 {
         let n = n.normalize_or_zero();
-        let Some(levels) = self.objects.get(object as usize) else {
+        let Some(sides) = self.objects.get(object as usize) else {
             return self.average;
         };
+        let levels = &sides[usize::from(!front)];
         if levels.is_empty() || !p.is_finite() || n == Vec3::ZERO || !n.is_finite() {
             return self.average;
         }
@@ -266,7 +275,7 @@ impl IrradianceCache {
         }
     }
 
-    /// The scene's area-weighted average indirect irradiance: what points
+    /// The area-weighted average indirect irradiance of the lit records: what points
     /// without usable records get.
     pub fn average(&self) -> Vec3 {
         self.average
@@ -331,16 +340,27 @@ fn fit_gradient(
     [g(0), g(1), g(2)]
 }
 
-/// Groups each object's records by radius, one tree per power of two.
-fn build_levels(simplified: &Simplified, records: &[Entry]) -> Vec<Vec<Level>> {
+/// Groups each object's records by side and radius, one tree per power of
+/// two. A record serves the sides its patches name it for (both where it
+/// stands for both, or no patch names it).
+fn build_levels(simplified: &Simplified, records: &[Entry]) -> Vec<[Vec<Level>; 2]> {
     let objects = simplified
         .records
         .iter()
         .map(|r| r.object as usize + 1)
         .max()
         .unwrap_or(0);
-    let mut groups: Vec<std::collections::BTreeMap<i32, Vec<u32>>> =
-        vec![Default::default(); objects];
+    let mut sides = vec![0u8; records.len()];
+    for p in &simplified.patches {
+        for (bit, set) in [(1u8, p.corners), (2, p.back)] {
+            for i in set {
+                if let Some(s) = sides.get_mut(i as usize) {
+                    *s |= bit;
+                }
+            }
+        }
+    }
+    let mut groups: Vec<[BTreeMap<i32, Vec<u32>>; 2]> = vec![Default::default(); objects];
     for (i, (rp, e)) in simplified.records.iter().zip(records).enumerate() {
         if !(e.position.is_finite() && e.radius > 0.0 && e.radius.is_finite())
             || e.normal == Vec3::ZERO
@@ -348,30 +368,38 @@ fn build_levels(simplified: &Simplified, records: &[Entry]) -> Vec<Vec<Level>> {
             continue;
         }
         let key = e.radius.log2().ceil() as i32;
-        groups[rp.object as usize]
-            .entry(key)
-            .or_default()
-            .push(i as u32);
+        for (side, bit) in [(0, 1u8), (1, 2)] {
+            if sides[i] == 0 || sides[i] & bit != 0 {
+                groups[rp.object as usize][side]
+                    .entry(key)
+                    .or_default()
+                    .push(i as u32);
+            }
+        }
     }
     groups
         .into_iter()
-        .map(|g| {
-            g.into_values()
-                .map(|ids| {
-                    let points: Vec<[f32; 3]> = ids
-                        .iter()
-                        .map(|&i| records[i as usize].position.to_array())
-                        .collect();
-                    Level {
-                        radius: ids
-                            .iter()
-                            .map(|&i| records[i as usize].radius)
-                            .fold(0.0, f32::max),
-                        tree: ImmutableKdTree::new_from_slice(&points),
-                        ids,
-                    }
-                })
-                .collect()
+        .map(|g| g.map(|g| levels(g, records)))
+        .collect()
+}
+
+/// One tree per radius group.
+fn levels(groups: BTreeMap<i32, Vec<u32>>, records: &[Entry]) -> Vec<Level> {
+    groups
+        .into_values()
+        .map(|ids| {
+            let points: Vec<[f32; 3]> = ids
+                .iter()
+                .map(|&i| records[i as usize].position.to_array())
+                .collect();
+            Level {
+                radius: ids
+                    .iter()
+                    .map(|&i| records[i as usize].radius)
+                    .fold(0.0, f32::max),
+                tree: ImmutableKdTree::new_from_slice(&points),
+                ids,
+            }
         })
         .collect()
 }

@@ -185,8 +185,9 @@ impl Multipass<'_> {
                 if segments + 2 <= self.max_depth && albedo != Vec3::ZERO {
                     // The object-space normal by winding, turned like `n`.
                     let nl = (b - a).cross(c - a).normalize_or_zero();
-                    let nl = if cos_o > 0.0 { nl } else { -nl };
-                    let e = self.cache.irradiance(hit.object, local, nl);
+                    let front = cos_o > 0.0;
+                    let nl = if front { nl } else { -nl };
+                    let e = self.cache.irradiance(hit.object, front, local, nl);
                     l += beta * albedo * FRAC_1_PI * e;
                 }
             }

@@ -32,7 +32,7 @@ use std::num::NonZero;
 use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
-use super::Simplified;
+use super::{record_sides, Simplified};
 
 /// Acceptance bound on Ward's error estimate `e_i`.
 const ACCEPT: f32 = 1.5;
@@ -89,13 +89,8 @@ impl IrradianceCache {
             let [a, b, c] = p.vertices;
             let longest = (b - a).length().max((c - b).length()).max((a - c).length());
             let share = p.area() as f64 / 3.0;
-            let sides = if p.back == p.corners {
-                &[p.corners][..]
-            } else {
-                &[p.corners, p.back][..]
-            };
-            for side in sides {
-                for &i in side {
+            for side in p.sides() {
+                for i in side {
                     let i = i as usize;
                     if i >= n || !longest.is_finite() {
                         continue;
@@ -104,7 +99,7 @@ impl IrradianceCache {
                     if share.is_finite() {
                         area[i] += share;
                     }
-                    for &j in side {
+                    for &j in &side {
                         if j as usize != i && (j as usize) < n && !neighbours[i].contains(&j) {
                             neighbours[i].push(j);
                         }
@@ -350,16 +345,7 @@ fn build_levels(simplified: &Simplified, records: &[Entry]) -> Vec<[Vec<Level>; 
         .map(|r| r.object as usize + 1)
         .max()
         .unwrap_or(0);
-    let mut sides = vec![0u8; records.len()];
-    for p in &simplified.patches {
-        for (bit, set) in [(1u8, p.corners), (2, p.back)] {
-            for i in set {
-                if let Some(s) = sides.get_mut(i as usize) {
-                    *s |= bit;
-                }
-            }
-        }
-    }
+    let sides = record_sides(simplified);
     let mut groups: Vec<[BTreeMap<i32, Vec<u32>>; 2]> = vec![Default::default(); objects];
     for (i, (rp, e)) in simplified.records.iter().zip(records).enumerate() {
         if !(e.position.is_finite() && e.radius > 0.0 && e.radius.is_finite())

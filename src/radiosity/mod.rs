@@ -145,6 +145,29 @@ impl Patch {
         let [a, b, c] = self.vertices;
         (b - a).cross(c - a).normalize_or_zero()
     }
+
+    /// The patch's corner records per side: the front's, then the back's
+    /// unless the same records stand for both.
+    pub fn sides(&self) -> impl Iterator<Item = [u32; 3]> {
+        std::iter::once(self.corners).chain((self.back != self.corners).then_some(self.back))
+    }
+}
+
+/// Which sides record `i` serves, as bits (1 front, 2 back): both where
+/// one record stands for both sides of its patches, none where no patch
+/// names it.
+pub fn record_sides(s: &Simplified) -> Vec<u8> {
+    let mut sides = vec![0u8; s.records.len()];
+    for p in &s.patches {
+        for (bit, set) in [(1u8, p.corners), (2, p.back)] {
+            for i in set {
+                if let Some(side) = sides.get_mut(i as usize) {
+                    *side |= bit;
+                }
+            }
+        }
+    }
+    sides
 }
 
 /// The part of a material that radiosity transports: its diffuse albedo.

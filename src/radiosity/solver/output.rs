@@ -4,7 +4,7 @@
 use glam::Vec3;
 
 use super::hierarchy::{Hierarchy, NONE};
-use crate::radiosity::Simplified;
+use crate::radiosity::{record_sides, Simplified};
 
 /// Irradiance `(indirect, direct)` at every record: the area-weighted
 /// average over the leaf elements that touch the record's point, over all
@@ -20,24 +20,19 @@ pub fn records(
     direct: &[[Vec3; 2]],
 ) -> (Vec<Vec3>, Vec<Vec3>) {
     let n = s.records.len();
-    // Per record and side: Σ A·indirect, Σ A·direct, Σ A; and which sides
-    // the patches assign it (bit 0 front, bit 1 back).
+    // Per record and side: Σ A·indirect, Σ A·direct, Σ A.
     let mut acc = vec![[(Vec3::ZERO, Vec3::ZERO); 2]; n];
     let mut weight = vec![0.0f32; n];
-    let mut role = vec![0u8; n];
     for (p, patch) in s.patches.iter().enumerate() {
         for k in 0..3 {
             let leaf = h.corner_leaf(p, k);
             if leaf == NONE {
                 continue;
             }
-            let (front, back) = (patch.corners[k] as usize, patch.back[k] as usize);
-            role[front] |= 1;
-            role[back] |= 2;
             let a = h.node(leaf).area;
             let l = leaf_of(leaf);
-            let both = [front, back];
-            for &rec in if front == back { &both[..1] } else { &both[..] } {
+            for records in patch.sides() {
+                let rec = records[k] as usize;
                 for side in 0..2 {
                     acc[rec][side].0 += indirect[l][side] * a;
                     acc[rec][side].1 += direct[l][side] * a;
@@ -48,7 +43,7 @@ pub fn records(
     }
     let mut ind = Vec::with_capacity(n);
     let mut dir = Vec::with_capacity(n);
-    for ((sides, w), role) in acc.into_iter().zip(weight).zip(role) {
+    for ((sides, w), role) in acc.into_iter().zip(weight).zip(record_sides(s)) {
         if w <= 0.0 {
             ind.push(Vec3::ZERO);
             dir.push(Vec3::ZERO);

@@ -12,6 +12,7 @@ pub mod embree;
 pub mod eval;
 pub mod export;
 pub mod image;
+pub mod plan;
 pub mod radiosity;
 pub mod render;
 pub mod scene;

@@ -6,6 +6,7 @@
 //! project; this crate's modules follow it one to one.
 
 pub mod accel;
+pub mod bake;
 pub mod camera;
 #[cfg(feature = "embree")]
 pub mod embree;

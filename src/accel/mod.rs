@@ -118,7 +118,10 @@ pub trait InstancedEngine: RayEngine {
 }
 
 /// Which ray engine to build.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
 pub enum Backend {
     /// Intel Embree 3 (needs the `embree` feature).
     Embree,

@@ -11,6 +11,7 @@ use crate::accel::InstancedEngine;
 use crate::camera::Camera;
 use crate::image;
 use crate::render::{self, RenderSettings};
+use crate::scene::hash::ContentHash;
 use crate::scene::Scene;
 
 /// Seed of every reference; test renders use other seeds so that their
@@ -155,22 +156,7 @@ fn cached(path: &Path, camera: &Camera, t: f32) -> Option<Vec<Vec3>> {
 /// the scene file and the loaded geometry (so that editing either one
 /// invalidates the cache).
 fn scene_id(scene: &Scene) -> Result<String> {
-    let text = std::fs::read(&scene.source)
-        .with_context(|| format!("reading {}", scene.source.display()))?;
-    let mut h = Fnv::default();
-    h.write(&text);
-    for o in &scene.objects {
-        for p in &o.mesh.positions {
-            for c in p.to_array() {
-                h.write(&c.to_le_bytes());
-            }
-        }
-        for t in &o.mesh.triangles {
-            for v in t {
-                h.write(&v.to_le_bytes());
-            }
-        }
-    }
+    let hash = ContentHash::of(scene)?;
     let name: String = folder_name(&scene.source)
         .chars()
         .map(|c| {
@@ -181,7 +167,7 @@ fn scene_id(scene: &Scene) -> Result<String> {
             }
         })
         .collect();
-    Ok(format!("{name}-{:016x}", h.0))
+    Ok(format!("{name}-{}", hash.total))
 }
 
 fn folder_name(source: &Path) -> String {
@@ -192,41 +178,10 @@ fn folder_name(source: &Path) -> String {
     }
 }
 
-/// FNV-1a, 64 bit: stable across builds and platforms, unlike the
-/// standard library's hasher, which is what a cache key on disk needs.
-struct Fnv(u64);
-
-impl Default for Fnv {
-    fn default() -> Self {
-        Self(0xcbf2_9ce4_8422_2325)
-    }
-}
-
-impl Fnv {
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 ^= b as u64;
-            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::accel::{self, Backend};
-
-    #[test]
-    fn fnv_matches_the_published_vectors() {
-        let hash = |s: &[u8]| {
-            let mut h = Fnv::default();
-            h.write(s);
-            h.0
-        };
-        assert_eq!(hash(b""), 0xcbf2_9ce4_8422_2325);
-        assert_eq!(hash(b"a"), 0xaf63_dc4c_8601_ec8c);
-        assert_eq!(hash(b"foobar"), 0x8594_4171_f739_67e8);
-    }
 
     #[test]
     fn references_are_rendered_once_and_then_reused() {

@@ -132,6 +132,50 @@ pub fn read_exr(path: impl AsRef<Path>) -> Result<RangeImage> {
     exr_io::read(path)
 }
 
+/// Writes a range image with further named RGB layers (channels
+/// `<name>.R`, `<name>.G`, `<name>.B`) as OpenEXR.
+pub fn write_exr_with_layers(
+    path: impl AsRef<Path>,
+    image: &RangeImage,
+    layers: &[(&str, &[Vec3])],
+) -> Result<()> {
+    let path = path.as_ref();
+    let planes = (|| {
+        let mut planes = planes::Planes::from_range(image)?;
+        for (name, values) in layers {
+            planes.push_rgb(name, values)?;
+        }
+        Ok::<_, anyhow::Error>(planes)
+    })()
+    .with_context(|| format!("writing {}", path.display()))?;
+    #[cfg(feature = "oiio")]
+    return write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Exr, &planes));
+    #[cfg(not(feature = "oiio"))]
+    write_atomically(path, |tmp| exr_io::write_planes(tmp, &planes))
+}
+
+/// Reads a range image written by [`write_exr_with_layers`] and the named
+/// layers, in the order asked.
+pub fn read_exr_with_layers(
+    path: impl AsRef<Path>,
+    layers: &[&str],
+) -> Result<(RangeImage, Vec<Vec<Vec3>>)> {
+    let path = path.as_ref();
+    #[cfg(feature = "oiio")]
+    let planes = oiio::read(path)?;
+    #[cfg(not(feature = "oiio"))]
+    let planes = exr_io::read_planes(path)?;
+    let values = layers
+        .iter()
+        .map(|name| planes.rgb(name))
+        .collect::<Result<Vec<_>>>()
+        .with_context(|| format!("{}: not a base image", path.display()))?;
+    let image = planes
+        .into_range()
+        .with_context(|| format!("{}: not a range image", path.display()))?;
+    Ok((image, values))
+}
+
 /// Writes linear RGB radiance (top row first) as a Radiance `.hdr` picture.
 pub fn write_hdr(path: impl AsRef<Path>, width: u32, height: u32, radiance: &[Vec3]) -> Result<()> {
     #[cfg(feature = "oiio")]

@@ -171,6 +171,28 @@ impl Planes {
         })
     }
 
+    /// Adds an RGB layer as channels `<name>.R`, `<name>.G`, `<name>.B`.
+    pub fn push_rgb(&mut self, name: &str, values: &[Vec3]) -> Result<()> {
+        let n = self.width as usize * self.height as usize;
+        ensure!(
+            values.len() == n,
+            "layer `{name}` has {} values for {n} pixels",
+            values.len()
+        );
+        for (c, plane) in RADIANCE.iter().zip(split(values)) {
+            self.channels
+                .push((format!("{name}.{c}"), Plane::F32(plane)));
+        }
+        Ok(())
+    }
+
+    /// The RGB layer added by [`Planes::push_rgb`].
+    pub fn rgb(&self, name: &str) -> Result<Vec<Vec3>> {
+        let [r, g, b] = RADIANCE.map(|c| self.f32_plane(&format!("{name}.{c}")));
+        let (r, g, b) = (r?, g?, b?);
+        Ok((0..r.len()).map(|i| Vec3::new(r[i], g[i], b[i])).collect())
+    }
+
     /// The named channel, checked to hold one sample per pixel.
     pub fn channel(&self, name: &str) -> Result<&Plane> {
         let (_, plane) = self

@@ -15,6 +15,8 @@ use anyhow::{anyhow, bail, ensure, Context, Result};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
+use crate::scene::hash::fnv1a64;
+
 use super::temporal::{DecomposeStats, IntervalTest, TimeSeries};
 use super::{IndirectSolution, Patch, RecordPoint, Simplified, SimplifyStats, SolveStats};
 
@@ -395,14 +397,6 @@ fn file_entry(name: &str, count: usize, bytes: &[u8]) -> FileEntry {
         bytes: bytes.len() as u64,
         fnv1a64: format!("{:016x}", fnv1a64(bytes)),
     }
-}
-
-/// FNV-1a, 64 bits: not cryptographic, but it catches flipped and shifted
-/// bytes, and is short enough to write out here.
-fn fnv1a64(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
-        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
-    })
 }
 
 fn simplify_entry(s: &SimplifyStats) -> SimplifyEntry {

@@ -58,7 +58,32 @@ impl Integrator<'_> {
 
     /// Radiance arriving along `ray` (one sample); `rays` counts every ray
     /// traced.
-    pub fn radiance(&self, mut ray: Ray, rng: &mut Pcg32, rays: &mut u64) -> Vec3 {
+    pub fn radiance(&self, ray: Ray, rng: &mut Pcg32, rays: &mut u64) -> Vec3 {
+        self.trace(ray, rng, rays, self.max_depth, false)
+    }
+
+    /// Radiance arriving along `ray` except what its first hit emits (or the
+    /// sun, where it hits nothing), in at most `max_depth` segments: the
+    /// indirect light a diffuse bounce brings to a point whose direct light
+    /// was sampled from the lights.
+    pub fn radiance_reflected(
+        &self,
+        ray: Ray,
+        rng: &mut Pcg32,
+        rays: &mut u64,
+        max_depth: u32,
+    ) -> Vec3 {
+        self.trace(ray, rng, rays, max_depth.min(self.max_depth), true)
+    }
+
+    fn trace(
+        &self,
+        mut ray: Ray,
+        rng: &mut Pcg32,
+        rays: &mut u64,
+        max_depth: u32,
+        skip_first_emission: bool,
+    ) -> Vec3 {
         let mut l = Vec3::ZERO;
         let mut beta = Vec3::ONE;
         // Density of the direction of `ray` by BSDF sampling; `None` when no
@@ -66,14 +91,17 @@ impl Integrator<'_> {
         let mut prev_pdf: Option<f32> = None;
         let mut prev_p = ray.origin;
         let mut segments = 1u32;
-        if self.max_depth == 0 {
+        if max_depth == 0 {
             return l;
         }
         loop {
             *rays += 1;
+            let emission_counts = !(skip_first_emission && segments == 1);
             let Some(hit) = self.engine.intersect(&ray) else {
                 let dir = ray.dir.normalize();
-                if let Some((le, pdf_light)) = self.lights.sun_along(dir) {
+                if let Some((le, pdf_light)) =
+                    self.lights.sun_along(dir).filter(|_| emission_counts)
+                {
                     let w = prev_pdf.map_or(1.0, |p| power_heuristic(p, pdf_light));
                     l += beta * le * w;
                 }
@@ -88,7 +116,7 @@ impl Integrator<'_> {
                 break;
             }
             let material = &self.scene.materials[object.material];
-            if let Some(em) = material.emission {
+            if let Some(em) = material.emission.filter(|_| emission_counts) {
                 if em.two_sided || cos_o > 0.0 {
                     let w = prev_pdf.map_or(1.0, |pb| {
                         let pl = self
@@ -99,7 +127,7 @@ impl Integrator<'_> {
                     l += beta * em.radiance * w;
                 }
             }
-            if segments >= self.max_depth {
+            if segments >= max_depth {
                 break;
             }
             let n = if cos_o > 0.0 { ng } else { -ng };

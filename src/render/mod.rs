@@ -51,12 +51,14 @@ pub struct RenderStats {
 
 const TILE: u32 = 16;
 
-/// One tile's mean radiances (row-major within the tile) and its ray count.
+/// One tile's mean radiances and diffuse-indirect parts (row-major within
+/// the tile) and its ray count.
 struct TileResult {
     x0: u32,
     y0: u32,
     w: u32,
     radiance: Vec<Vec3>,
+    indirect: Vec<Vec3>,
     rays: u64,
 }
 
@@ -102,9 +104,9 @@ pub fn render(
     };
     let mut image = RangeImage::empty(meta);
     let mut rays = first_hits(engine, camera, &mut image);
-    rays += shade_tiles(camera, settings, &mut image, &|ray, _, rng, rays| {
-        integrator.radiance(ray, rng, rays)
-    });
+    let shade =
+        |ray, _, rng: &mut Pcg32, rays: &mut u64| [integrator.radiance(ray, rng, rays), Vec3::ZERO];
+    rays += shade_tiles(camera, settings, &mut image, &shade, Progress::Tiles).0;
     let (w, h) = (camera.width, camera.height);
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
@@ -116,45 +118,69 @@ pub fn render(
 
 /// Estimates one radiance sample along a camera ray, given the sample's
 /// index within its pixel (for stratification); the last argument counts
-/// the rays traced.
-type Shade<'a> = dyn Fn(Ray, u32, &mut Pcg32, &mut u64) -> Vec3 + Sync + 'a;
+/// the rays traced. Returns the whole radiance and the part of it that is
+/// diffuse indirect light at the surfaces seen (zero where a renderer does
+/// not tell it apart).
+type Shade<'a> = dyn Fn(Ray, u32, &mut Pcg32, &mut u64) -> [Vec3; 2] + Sync + 'a;
+
+/// Where a render reports its progress: its own bar over tiles, or a bar
+/// owned by a larger job that counts pixels.
+#[derive(Clone, Copy)]
+pub enum Progress<'a> {
+    Tiles,
+    Pixels(&'a ProgressBar),
+}
 
 /// Shades every pixel sample of `camera`'s view in tiles handed out by
 /// rayon, with progress, writing mean radiances into `image`; returns the
-/// number of rays traced.
+/// number of rays traced and the mean diffuse-indirect part of each pixel.
 fn shade_tiles(
     camera: &Camera,
     settings: &RenderSettings,
     image: &mut RangeImage,
     shade: &Shade,
-) -> u64 {
+    progress: Progress,
+) -> (u64, Vec<Vec3>) {
     let (w, h) = (camera.width, camera.height);
     let tiles: Vec<(u32, u32)> = (0..h.div_ceil(TILE))
         .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
         .collect();
-    let progress = ProgressBar::new(tiles.len() as u64).with_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} tiles, {elapsed} ({eta} left)")
-            .expect("progress template is valid"),
-    );
+    let own = match progress {
+        Progress::Tiles => Some(
+            ProgressBar::new(tiles.len() as u64).with_style(
+                ProgressStyle::with_template("{bar:40} {pos}/{len} tiles, {elapsed} ({eta} left)")
+                    .expect("progress template is valid"),
+            ),
+        ),
+        Progress::Pixels(_) => None,
+    };
     let results: Vec<TileResult> = tiles
         .par_iter()
         .map(|&(x0, y0)| {
             let r = render_tile(shade, camera, settings, x0, y0);
-            progress.inc(1);
+            match (&own, progress) {
+                (Some(bar), _) => bar.inc(1),
+                (None, Progress::Pixels(bar)) => bar.inc(r.radiance.len() as u64),
+                (None, Progress::Tiles) => {}
+            }
             r
         })
         .collect();
-    progress.finish_and_clear();
+    if let Some(bar) = own {
+        bar.finish_and_clear();
+    }
 
     let mut rays = 0;
+    let mut indirect = vec![Vec3::ZERO; image.len()];
     for t in results {
         rays += t.rays;
-        for (k, &c) in t.radiance.iter().enumerate() {
+        for (k, (&c, &i)) in t.radiance.iter().zip(&t.indirect).enumerate() {
             let (x, y) = (t.x0 + k as u32 % t.w, t.y0 + k as u32 / t.w);
             image.radiance[(y * w + x) as usize] = c;
+            indirect[(y * w + x) as usize] = i;
         }
     }
-    rays
+    (rays, indirect)
 }
 
 /// Where in its pixel each sample looks: the first `n²` samples
@@ -205,25 +231,28 @@ fn render_tile(
     let x1 = (x0 + TILE).min(camera.width);
     let y1 = (y0 + TILE).min(camera.height);
     let mut radiance = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
+    let mut indirect = Vec::with_capacity(radiance.capacity());
     let mut rays = 0;
     for y in y0..y1 {
         for x in x0..x1 {
             let pixel = y as u64 * camera.width as u64 + x as u64;
             let strata = PixelStrata::new(settings.spp, settings.seed, pixel);
-            let mut sum = DVec3::ZERO;
+            let (mut sum, mut sum_indirect) = (DVec3::ZERO, DVec3::ZERO);
             for s in 0..settings.spp {
                 let mut rng = Pcg32::for_sample(settings.seed, pixel, s as u64);
                 let (dx, dy) = strata.offset(s, rng.next_f32(), rng.next_f32());
                 let Some(ray) = camera.ray(x as f32 + dx, y as f32 + dy) else {
                     continue;
                 };
-                let l = shade(ray, s, &mut rng, &mut rays);
+                let [l, li] = shade(ray, s, &mut rng, &mut rays);
                 debug_assert!(l.is_finite(), "pixel ({x}, {y}) sample {s}: radiance {l}");
-                if l.is_finite() {
+                if l.is_finite() && li.is_finite() {
                     sum += l.as_dvec3();
+                    sum_indirect += li.as_dvec3();
                 }
             }
             radiance.push((sum / settings.spp as f64).as_vec3());
+            indirect.push((sum_indirect / settings.spp as f64).as_vec3());
         }
     }
     TileResult {
@@ -231,6 +260,7 @@ fn render_tile(
         y0,
         w: x1 - x0,
         radiance,
+        indirect,
         rays,
     }
 }

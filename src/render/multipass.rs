@@ -30,10 +30,10 @@ use anyhow::{ensure, Result};
 use glam::{Affine3A, Vec2, Vec3};
 
 use super::bsdf::{Frame, Lobes};
-use super::integrator::power_heuristic;
+use super::integrator::{power_heuristic, Integrator};
 use super::lights::Lights;
 use super::rng::Pcg32;
-use super::{first_hits, shade_tiles, RenderSettings, RenderStats};
+use super::{first_hits, shade_tiles, Progress, RenderSettings, RenderStats};
 use crate::accel::{offset_origin, Ray, RayEngine};
 use crate::camera::Camera;
 use crate::image::{RangeImage, RangeMeta};
@@ -43,6 +43,29 @@ use crate::scene::Scene;
 /// Longest path (in segments) when `RenderSettings::max_depth` is `None`:
 /// a chain of mirrors facing each other must still end.
 pub const UNBOUNDED_DEPTH: u32 = 16;
+
+/// Where diffuse indirect light comes from.
+#[derive(Clone, Copy)]
+pub enum Indirect<'a> {
+    /// Radiosity records interpolated to the rendered time (the paper's
+    /// multipass renderer).
+    Records(&'a IrradianceCache),
+    /// One cosine-sampled bounce per sample, continued by the path tracer:
+    /// unbiased, for base images where no radiosity bake is wanted.
+    Traced,
+}
+
+/// A render split as base images store it.
+pub struct Layers {
+    /// The whole radiance, with first hits (distance, ids, normals).
+    pub image: RangeImage,
+    /// The part of each pixel's radiance that is diffuse indirect light at
+    /// the surfaces seen, directly or in mirrors; the rest (emission, direct
+    /// light, traced specular and glossy reflection) is `image.radiance`
+    /// minus this.
+    pub indirect: Vec<Vec3>,
+    pub stats: RenderStats,
+}
 
 /// Renders `camera`'s view at `time`; `engine` holds the scene posed at
 /// `time` and `indirect` the records interpolated to `time`.
@@ -55,6 +78,29 @@ pub fn render(
     settings: &RenderSettings,
     indirect: &IrradianceCache,
 ) -> Result<(RangeImage, RenderStats)> {
+    let out = render_layers(
+        scene,
+        engine,
+        camera,
+        time,
+        settings,
+        Indirect::Records(indirect),
+        Progress::Tiles,
+    )?;
+    Ok((out.image, out.stats))
+}
+
+/// [`render`] with the diffuse indirect part kept apart, indirect light
+/// from either source, and progress reported where the caller says.
+pub fn render_layers(
+    scene: &Scene,
+    engine: &dyn RayEngine,
+    camera: &Camera,
+    time: f32,
+    settings: &RenderSettings,
+    indirect: Indirect,
+    progress: Progress,
+) -> Result<Layers> {
     ensure!(settings.spp > 0, "multipass render: spp must be at least 1");
     ensure!(
         scene.objects.len() < u32::MAX as usize,
@@ -66,17 +112,31 @@ pub fn render(
         engine,
         lights: Lights::new(scene, time),
         poses: scene.at(time),
-        cache: indirect,
+        indirect: match indirect {
+            Indirect::Records(cache) => Source::Records(cache),
+            Indirect::Traced => Source::Traced(Integrator {
+                scene,
+                engine,
+                lights: Lights::new(scene, time),
+                poses: scene.at(time),
+                max_depth: settings.max_depth.unwrap_or(u32::MAX),
+            }),
+        },
         max_depth: settings.max_depth.unwrap_or(UNBOUNDED_DEPTH),
+        traced_depth: settings.max_depth.unwrap_or(u32::MAX),
         strata: (settings.spp as f32).sqrt().floor() as u32,
     };
     let meta = RangeMeta {
         camera: *camera,
         time,
         scene: format!(
-            "{} t={time} multipass ({}) spp={} max_depth={} seed={}",
+            "{} t={time} multipass ({}, indirect {}) spp={} max_depth={} seed={}",
             scene.source.display(),
             engine.name(),
+            match indirect {
+                Indirect::Records(_) => "from radiosity records",
+                Indirect::Traced => "traced",
+            },
             settings.spp,
             shader.max_depth,
             settings.seed
@@ -84,15 +144,29 @@ pub fn render(
     };
     let mut image = RangeImage::empty(meta);
     let mut rays = first_hits(engine, camera, &mut image);
-    rays += shade_tiles(camera, settings, &mut image, &|ray, s, rng, rays| {
-        shader.radiance(ray, s, rng, rays)
-    });
+    let (traced, indirect) = shade_tiles(
+        camera,
+        settings,
+        &mut image,
+        &|ray, s, rng, rays| shader.radiance(ray, s, rng, rays),
+        progress,
+    );
+    rays += traced;
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
         samples: camera.width as u64 * camera.height as u64 * settings.spp as u64,
         rays,
     };
-    Ok((image, stats))
+    Ok(Layers {
+        image,
+        indirect,
+        stats,
+    })
+}
+
+enum Source<'a> {
+    Records(&'a IrradianceCache),
+    Traced(Integrator<'a>),
 }
 
 struct Multipass<'a> {
@@ -100,8 +174,11 @@ struct Multipass<'a> {
     engine: &'a dyn RayEngine,
     lights: Lights,
     poses: Vec<Affine3A>,
-    cache: &'a IrradianceCache,
+    indirect: Source<'a>,
     max_depth: u32,
+    /// Longest path when indirect light is traced (unbounded unless the
+    /// settings bound it).
+    traced_depth: u32,
     /// Light samples at the first hit are stratified on a
     /// `strata x strata` grid over the pixel's samples.
     strata: u32,
@@ -118,13 +195,18 @@ enum Came {
 }
 
 impl Multipass<'_> {
-    fn radiance(&self, mut ray: Ray, sample: u32, rng: &mut Pcg32, rays: &mut u64) -> Vec3 {
+    /// One sample's radiance and the diffuse indirect part of it seen
+    /// directly or in mirrors.
+    fn radiance(&self, mut ray: Ray, sample: u32, rng: &mut Pcg32, rays: &mut u64) -> [Vec3; 2] {
         let mut l = Vec3::ZERO;
+        let mut l_indirect = Vec3::ZERO;
         let mut beta = Vec3::ONE;
         let mut came = Came::Only;
+        // No glossy bounce yet: what is found is seen directly or in mirrors.
+        let mut sharp = true;
         let mut segments = 1u32;
         if self.max_depth == 0 {
-            return l;
+            return [l, l_indirect];
         }
         loop {
             *rays += 1;
@@ -182,13 +264,38 @@ impl Multipass<'_> {
                 l += beta * self.direct(p, ng, frame, wo_l, diffuse, specular, u, rays);
             }
             if let Some(Lobes::Diffuse { albedo }) = diffuse {
-                if segments + 2 <= self.max_depth && albedo != Vec3::ZERO {
-                    // The object-space normal by winding, turned like `n`.
-                    let nl = (b - a).cross(c - a).normalize_or_zero();
-                    let front = cos_o > 0.0;
-                    let nl = if front { nl } else { -nl };
-                    let e = self.cache.irradiance(hit.object, front, local, nl);
-                    l += beta * albedo * FRAC_1_PI * e;
+                if albedo != Vec3::ZERO {
+                    let li = match &self.indirect {
+                        Source::Records(cache) if segments + 2 <= self.max_depth => {
+                            // The object-space normal by winding, turned like `n`.
+                            let nl = (b - a).cross(c - a).normalize_or_zero();
+                            let front = cos_o > 0.0;
+                            let nl = if front { nl } else { -nl };
+                            let e = cache.irradiance(hit.object, front, local, nl);
+                            beta * albedo * FRAC_1_PI * e
+                        }
+                        Source::Traced(integrator) if segments + 2 <= self.traced_depth => {
+                            let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+                            match (Lobes::Diffuse { albedo }).sample(wo_l, u) {
+                                Some(s) => {
+                                    let wi = frame.to_world(s.wi);
+                                    let bounce = Ray::new(offset_origin(p, ng, wi), wi);
+                                    let depth = self.traced_depth - segments;
+                                    let li =
+                                        integrator.radiance_reflected(bounce, rng, rays, depth);
+                                    beta * s.weight * li
+                                }
+                                None => Vec3::ZERO,
+                            }
+                        }
+                        _ => Vec3::ZERO,
+                    };
+                    if li.is_finite() {
+                        l += li;
+                        if sharp {
+                            l_indirect += li;
+                        }
+                    }
                 }
             }
 
@@ -200,6 +307,7 @@ impl Multipass<'_> {
             if beta == Vec3::ZERO || !beta.is_finite() {
                 break;
             }
+            sharp &= s.delta;
             came = if s.delta {
                 Came::Only
             } else {
@@ -212,7 +320,7 @@ impl Multipass<'_> {
             let wi = frame.to_world(s.wi);
             ray = Ray::new(offset_origin(p, ng, wi), wi);
         }
-        l
+        [l, l_indirect]
     }
 
     /// Uniform numbers for a light sample; at the camera's first hit the

@@ -14,6 +14,7 @@ use glam::{Affine3A, Vec2, Vec3};
 use crate::accel::MeshGeometry;
 use crate::camera::{Camera, Projection};
 
+pub mod hash;
 mod load;
 mod motion;
 

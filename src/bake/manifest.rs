@@ -1,0 +1,133 @@
+//! The bake directory's `manifest.json`: what was baked from what, with
+//! which settings, and each image's checksum once the bake is complete.
+//!
+//! While a bake runs (on one machine or as shards on many), each finished
+//! image has a checksum file beside it, written after the image; the
+//! manifest gathers them when the last image is done. An image without a
+//! matching checksum file is unfinished or damaged, and is rendered again.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use serde::{Deserialize, Serialize};
+
+use crate::plan::Plan;
+use crate::scene::hash::{fnv1a64, ContentHash};
+
+use super::Settings;
+
+/// Identifies a base-image bake manifest.
+pub const FORMAT: &str = "rangewalk-base-images";
+/// Bumped whenever the layout changes; other versions are refused.
+pub const VERSION: u32 = 1;
+pub const MANIFEST: &str = "manifest.json";
+/// The object-space bake (radiosity), when indirect light comes from it.
+pub const RADIOSITY: &str = "radiosity";
+pub const IMAGES: &str = "images";
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub format: String,
+    pub version: u32,
+    /// The scene file as given when the bake was started.
+    pub scene: PathBuf,
+    pub scene_hash: ContentHash,
+    pub settings: Settings,
+    pub plan: Plan,
+    /// Every (view, time) image, in the order shards count them.
+    pub images: Vec<ImageEntry>,
+    /// Whether every image is rendered and its checksum recorded here.
+    pub complete: bool,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImageEntry {
+    /// Index into `plan.views`.
+    pub view: usize,
+    /// Index into that view's `times`.
+    pub time_index: usize,
+    pub time: f32,
+    /// Path relative to the bake directory.
+    pub file: String,
+    /// FNV-1a 64 of the file's bytes (16 hex digits), once complete.
+    pub fnv1a64: Option<String>,
+}
+
+impl Manifest {
+    pub fn read(dir: &Path) -> Result<Manifest> {
+        let path = dir.join(MANIFEST);
+        let text =
+            fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+        let m: Manifest = serde_json::from_str(&text)
+            .with_context(|| format!("{}: not a base-image bake manifest", path.display()))?;
+        if m.format != FORMAT {
+            bail!(
+                "{}: `format` is `{}`, expected `{FORMAT}`",
+                path.display(),
+                m.format
+            );
+        }
+        if m.version != VERSION {
+            bail!(
+                "{}: `version` is {}, this rangewalk reads version {VERSION}",
+                path.display(),
+                m.version
+            );
+        }
+        Ok(m)
+    }
+
+    /// Writes the manifest atomically (a reader sees the old or the new one).
+    pub fn write(&self, dir: &Path) -> Result<()> {
+        let text = serde_json::to_string_pretty(self).context("encoding the bake manifest")?;
+        write_atomically(&dir.join(MANIFEST), text.as_bytes())
+    }
+}
+
+/// The checksum file beside an image.
+pub fn checksum_path(image: &Path) -> PathBuf {
+    let mut name = image.as_os_str().to_os_string();
+    name.push(".fnv1a64");
+    PathBuf::from(name)
+}
+
+/// The file's checksum, as 16 hex digits.
+pub fn checksum_of(path: &Path) -> Result<String> {
+    let bytes = fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    Ok(format!("{:016x}", fnv1a64(&bytes)))
+}
+
+/// Whether the image is finished and undamaged: it exists and its bytes
+/// match the checksum recorded after it was written (`expected` where the
+/// manifest already holds it, else the checksum file).
+pub fn verify(path: &Path, expected: Option<&str>) -> Result<bool> {
+    if !path.exists() {
+        return Ok(false);
+    }
+    let recorded = match expected {
+        Some(sum) => sum.to_string(),
+        None => match fs::read_to_string(checksum_path(path)) {
+            Ok(s) => s.trim().to_string(),
+            Err(_) => return Ok(false),
+        },
+    };
+    Ok(checksum_of(path)? == recorded)
+}
+
+/// Writes `bytes` to a temporary file beside `target` and renames it into
+/// place, so that no reader, and no later run after a kill, sees a partial
+/// file under the final name.
+pub fn write_atomically(target: &Path, bytes: &[u8]) -> Result<()> {
+    let mut name = std::ffi::OsString::from(".");
+    name.push(target.file_name().unwrap_or_default());
+    name.push(format!(".{}.partial", std::process::id()));
+    let tmp = target.with_file_name(name);
+    let result = fs::write(&tmp, bytes)
+        .and_then(|()| fs::rename(&tmp, target))
+        .with_context(|| format!("writing {}", target.display()));
+    if result.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    result
+}

@@ -1,0 +1,523 @@
+//! Base range images (paper §4.4): for every (view, time) of a plan, a
+//! full-sphere (or 180° fisheye) range image rendered by the multipass
+//! renderer: radiance, distance, object and primitive ids and normals, with
+//! the diffuse-indirect part and the rest (direct and specular) as separate
+//! layers for the synthesis.
+//!
+//! A bake directory holds the plan, the settings and a content hash of the
+//! scene in `manifest.json` (see `docs/bake-format.md`), the radiosity
+//! stage's bake in `radiosity/` (computed once and reused), and the images
+//! in `images/`. Every file is written atomically. Each image's sampler is
+//! seeded from (seed, view, time), so an image is the same whichever run,
+//! shard or thread count renders it: a killed bake started again renders
+//! only what is missing or damaged and ends identical to an uninterrupted
+//! one, and shards `i/n` together make exactly the single-machine bake.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, ensure, Context, Result};
+use glam::Vec3;
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::{Deserialize, Serialize};
+
+use crate::accel::{Backend, InstancedEngine};
+use crate::camera::{Camera, Projection};
+use crate::image::{self, RangeImage};
+use crate::plan::Plan;
+use crate::radiosity::lookup::IrradianceCache;
+use crate::radiosity::temporal::{self, TimeSeries};
+use crate::radiosity::{self, bake as radiosity_bake, Quality, Simplified};
+use crate::render::multipass::{self, Indirect};
+use crate::render::{Progress, RenderSettings};
+use crate::scene::hash::{ContentHash, Fnv};
+use crate::scene::Scene;
+
+pub mod manifest;
+pub mod size;
+
+pub use manifest::{ImageEntry, Manifest};
+
+/// The layers a base image holds besides its radiance.
+pub const DIRECT: &str = "direct";
+pub const INDIRECT: &str = "indirect";
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum BaseProjection {
+    /// Every direction, equal-area octahedral: the viewer may turn freely.
+    Sphere,
+    /// 180° angular fisheye along the scene's view direction (the paper's).
+    Fisheye,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum IndirectSource {
+    /// Looked up from radiosity records interpolated in time (§4.3–4.4).
+    Radiosity,
+    /// Traced: one diffuse bounce per sample continued by the path tracer.
+    Path,
+}
+
+/// Everything that decides a bake's images. A bake is resumed or extended
+/// (by shards) only with the same settings.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Settings {
+    pub quality: f32,
+    /// Side of the square base images.
+    pub size: u32,
+    pub spp: u32,
+    pub projection: BaseProjection,
+    pub indirect: IndirectSource,
+    pub seed: u64,
+    pub backend: Backend,
+    pub max_depth: Option<u32>,
+}
+
+/// Which part of the images this run renders: every `count`-th image from
+/// the `index`-th, in manifest order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    pub index: u32,
+    pub count: u32,
+}
+
+impl Shard {
+    pub const ALL: Shard = Shard { index: 0, count: 1 };
+
+    pub fn owns(&self, k: usize) -> bool {
+        k % self.count as usize == self.index as usize
+    }
+}
+
+impl std::str::FromStr for Shard {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let err = || format!("shard `{s}` is not i/n with 0 <= i < n, e.g. 0/4");
+        let (i, n) = s.split_once('/').ok_or_else(err)?;
+        let (index, count) = (
+            i.trim().parse::<u32>().map_err(|_| err())?,
+            n.trim().parse::<u32>().map_err(|_| err())?,
+        );
+        if count == 0 || index >= count {
+            return Err(err());
+        }
+        Ok(Shard { index, count })
+    }
+}
+
+/// What one run did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Summary {
+    /// Images of this shard rendered now.
+    pub rendered: usize,
+    /// Images of this shard found finished and left alone.
+    pub reused: usize,
+    /// Images of the whole bake, and how many of them are finished.
+    pub total: usize,
+    pub finished: usize,
+    pub complete: bool,
+    pub samples: u64,
+    /// Rays traced for shading (camera, shadow, bounce rays).
+    pub rays: u64,
+    pub render_seconds: f64,
+    /// Radiosity stage: `None` where it was reused or not needed.
+    pub radiosity_seconds: Option<f64>,
+    /// Planning: `None` where the plan came from an earlier run.
+    pub plan_seconds: Option<f64>,
+}
+
+/// The image's path relative to the bake directory.
+fn image_file(view: usize, time_index: usize) -> String {
+    format!("{}/v{view:03}-t{time_index:03}.exr", manifest::IMAGES)
+}
+
+/// Every (view, time) of the plan, views first.
+pub fn image_entries(plan: &Plan) -> Vec<ImageEntry> {
+    plan.views
+        .iter()
+        .enumerate()
+        .flat_map(|(v, view)| {
+            view.times
+                .iter()
+                .enumerate()
+                .map(move |(j, &time)| ImageEntry {
+                    view: v,
+                    time_index: j,
+                    time,
+                    file: image_file(v, j),
+                    fnv1a64: None,
+                })
+        })
+        .collect()
+}
+
+/// The camera of view `position`: one orientation for every base image
+/// (the scene's main view direction, so a fisheye looks where the viewer
+/// does and a sphere has that direction at its centre).
+pub fn base_camera(scene: &Scene, position: Vec3, settings: &Settings) -> Result<Camera> {
+    let (forward, up) = view_frame(scene);
+    let projection = match settings.projection {
+        BaseProjection::Sphere => Projection::Sphere,
+        BaseProjection::Fisheye => Projection::Fisheye,
+    };
+    Camera::looking(
+        position,
+        forward,
+        up,
+        projection,
+        settings.size,
+        settings.size,
+    )
+}
+
+/// The first walk path's first view direction, else the first camera's,
+/// else +z.
+fn view_frame(scene: &Scene) -> (Vec3, Vec3) {
+    if let Some(k) = scene.paths.first().and_then(|p| p.keys.first()) {
+        return (k.direction, k.up);
+    }
+    if let Some(c) = scene.cameras.first() {
+        return (c.direction, c.up);
+    }
+    (Vec3::Z, Vec3::Y)
+}
+
+/// The seed of one image's sampler, from the bake's seed, the view and the
+/// time: independent of which run or shard renders it.
+pub fn image_seed(seed: u64, view: usize, time: f32) -> u64 {
+    let mut h = Fnv::default();
+    h.write(&seed.to_le_bytes());
+    h.write(&(view as u64).to_le_bytes());
+    h.write(&time.to_bits().to_le_bytes());
+    h.finish()
+}
+
+/// Starts a bake in `dir`, or resumes the one there: checks that it was
+/// made from this scene with these settings, plans (with `plan`) only when
+/// starting, solves radiosity once, renders this shard's missing or damaged
+/// images, and marks the bake complete when no image of any shard is
+/// missing.
+pub fn run(
+    scene: &Scene,
+    dir: &Path,
+    settings: &Settings,
+    shard: Shard,
+    engine: &mut dyn InstancedEngine,
+    plan: impl FnOnce(&mut dyn InstancedEngine) -> Result<Plan>,
+) -> Result<Summary> {
+    ensure!(settings.spp > 0, "--spp must be at least 1");
+    ensure!(settings.size > 0, "--size must be at least 1");
+    let quality = Quality::new(settings.quality).context("--quality")?;
+    let hash = ContentHash::of(scene)?;
+    let mut summary = Summary::default();
+    let mut manifest = if dir.join(manifest::MANIFEST).exists() {
+        let m = Manifest::read(dir)?;
+        check_fits(&m, dir, &hash, settings)?;
+        m
+    } else {
+        if dir.exists() && dir.read_dir()?.next().is_some() {
+            bail!(
+                "{} exists and is not a bake (no {}); refusing to write into it",
+                dir.display(),
+                manifest::MANIFEST
+            );
+        }
+        let start = Instant::now();
+        let plan = plan(engine)?;
+        summary.plan_seconds = Some(start.elapsed().as_secs_f64());
+        ensure!(!plan.views.is_empty(), "the plan has no views");
+        for (i, v) in plan.views.iter().enumerate() {
+            ensure!(!v.times.is_empty(), "the plan gives view {i} no times");
+        }
+        std::fs::create_dir_all(dir.join(manifest::IMAGES))
+            .with_context(|| format!("creating {}", dir.display()))?;
+        let m = Manifest {
+            format: manifest::FORMAT.into(),
+            version: manifest::VERSION,
+            scene: scene.source.clone(),
+            scene_hash: hash,
+            settings: *settings,
+            images: image_entries(&plan),
+            plan,
+            complete: false,
+        };
+        m.write(dir)?;
+        m
+    };
+    std::fs::create_dir_all(dir.join(manifest::IMAGES))
+        .with_context(|| format!("creating {}", dir.join(manifest::IMAGES).display()))?;
+    summary.total = manifest.images.len();
+
+    let mine: Vec<usize> = (0..manifest.images.len())
+        .filter(|&k| shard.owns(k))
+        .collect();
+    let mut todo = Vec::new();
+    for &k in &mine {
+        let e = &manifest.images[k];
+        if manifest::verify(&dir.join(&e.file), e.fnv1a64.as_deref())? {
+            summary.reused += 1;
+        } else {
+            todo.push(k);
+        }
+    }
+
+    if !todo.is_empty() {
+        let indirect = match settings.indirect {
+            IndirectSource::Radiosity => {
+                let (s, series, seconds) = radiosity_stage(scene, dir, quality, engine)?;
+                summary.radiosity_seconds = seconds;
+                Some((s, series))
+            }
+            IndirectSource::Path => None,
+        };
+        let pixels = settings.size as u64 * settings.size as u64;
+        let bar = ProgressBar::new(pixels * todo.len() as u64).with_style(
+            ProgressStyle::with_template(
+                "{msg} {bar:40} {percent}% of pixels, {elapsed} ({eta} left)",
+            )
+            .expect("progress template is valid"),
+        );
+        let start = Instant::now();
+        for (n, &k) in todo.iter().enumerate() {
+            let e = manifest.images[k].clone();
+            bar.set_message(format!("image {}/{}", n + 1, todo.len()));
+            let stats = render_image(
+                scene,
+                &manifest,
+                &e,
+                settings,
+                engine,
+                indirect.as_ref(),
+                dir,
+                &bar,
+            )
+            .with_context(|| format!("baking {}", e.file))?;
+            summary.rendered += 1;
+            summary.samples += stats.samples;
+            summary.rays += stats.rays;
+        }
+        bar.finish_and_clear();
+        summary.render_seconds = start.elapsed().as_secs_f64();
+    }
+
+    // Gather every shard's checksums; the bake is complete when none is
+    // missing.
+    let mut sums = Vec::with_capacity(manifest.images.len());
+    for e in &manifest.images {
+        let path = dir.join(&e.file);
+        let ok = manifest::verify(&path, e.fnv1a64.as_deref())?;
+        sums.push(ok.then(|| manifest::checksum_of(&path)).transpose()?);
+    }
+    summary.finished = sums.iter().filter(|s| s.is_some()).count();
+    if summary.finished == summary.total && !manifest.complete {
+        for (e, s) in manifest.images.iter_mut().zip(sums) {
+            e.fnv1a64 = s;
+        }
+        manifest.complete = true;
+        manifest.write(dir)?;
+    }
+    summary.complete = manifest.complete;
+    Ok(summary)
+}
+
+/// Refuses a bake made from another scene or with other settings, saying
+/// what differs.
+fn check_fits(m: &Manifest, dir: &Path, hash: &ContentHash, settings: &Settings) -> Result<()> {
+    let changes = m.scene_hash.differences(hash);
+    if !changes.is_empty() {
+        bail!(
+            "{} was baked from {} and the scene differs from it: {}",
+            dir.display(),
+            m.scene.display(),
+            changes.join(", ")
+        );
+    }
+    if m.settings != *settings {
+        bail!(
+            "{} was baked with other settings ({}); use them to resume it, or another directory",
+            dir.display(),
+            describe_difference(&m.settings, settings)
+        );
+    }
+    Ok(())
+}
+
+fn describe_difference(was: &Settings, now: &Settings) -> String {
+    let mut out = Vec::new();
+    let mut diff = |name: &str, a: String, b: String| {
+        if a != b {
+            out.push(format!("--{name} {a}, not {b}"));
+        }
+    };
+    diff("quality", was.quality.to_string(), now.quality.to_string());
+    diff("size", was.size.to_string(), now.size.to_string());
+    diff("spp", was.spp.to_string(), now.spp.to_string());
+    diff(
+        "projection",
+        format!("{:?}", was.projection).to_lowercase(),
+        format!("{:?}", now.projection).to_lowercase(),
+    );
+    diff(
+        "indirect",
+        format!("{:?}", was.indirect).to_lowercase(),
+        format!("{:?}", now.indirect).to_lowercase(),
+    );
+    diff("seed", was.seed.to_string(), now.seed.to_string());
+    diff("backend", was.backend.to_string(), now.backend.to_string());
+    diff(
+        "max-depth",
+        format!("{:?}", was.max_depth),
+        format!("{:?}", now.max_depth),
+    );
+    out.join(", ")
+}
+
+/// The radiosity bake in `dir/radiosity`, solved and saved first if it is
+/// not there; returns the seconds spent solving (`None` when reused).
+fn radiosity_stage(
+    scene: &Scene,
+    dir: &Path,
+    quality: Quality,
+    engine: &mut dyn InstancedEngine,
+) -> Result<(Simplified, TimeSeries, Option<f64>)> {
+    let path = dir.join(manifest::RADIOSITY);
+    if path.join(radiosity_bake::MANIFEST).exists() {
+        let (simplified, series) = radiosity_bake::load(&path)?;
+        return Ok((simplified, series, None));
+    }
+    let start = Instant::now();
+    eprintln!(
+        "radiosity: simplifying and solving at quality {}",
+        quality.get()
+    );
+    engine.set_transforms(&scene.at(scene.animation.start))?;
+    let simplified = radiosity::simplify(scene, engine, quality)?;
+    let series = temporal::decompose(scene, &simplified, engine, quality)?;
+    radiosity_bake::save_with(&path, &scene.source, &simplified, &series)?;
+    Ok((simplified, series, Some(start.elapsed().as_secs_f64())))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn render_image(
+    scene: &Scene,
+    manifest: &Manifest,
+    e: &ImageEntry,
+    settings: &Settings,
+    engine: &mut dyn InstancedEngine,
+    indirect: Option<&(Simplified, TimeSeries)>,
+    dir: &Path,
+    bar: &ProgressBar,
+) -> Result<crate::render::RenderStats> {
+    let view = &manifest.plan.views[e.view];
+    let camera = base_camera(scene, view.position, settings)?;
+    engine
+        .set_transforms(&scene.at(e.time))
+        .with_context(|| format!("posing the scene at t = {}", e.time))?;
+    let render_settings = RenderSettings {
+        spp: settings.spp,
+        max_depth: settings.max_depth,
+        seed: image_seed(settings.seed, e.view, e.time),
+    };
+    let cache = indirect.map(|(s, series)| IrradianceCache::new(s, &series.indirect_at(e.time)));
+    let source = match &cache {
+        Some(c) => Indirect::Records(c),
+        None => Indirect::Traced,
+    };
+    let out = multipass::render_layers(
+        scene,
+        &*engine,
+        &camera,
+        e.time,
+        &render_settings,
+        source,
+        Progress::Pixels(bar),
+    )?;
+    let direct: Vec<Vec3> = out
+        .image
+        .radiance
+        .iter()
+        .zip(&out.indirect)
+        .map(|(l, i)| *l - *i)
+        .collect();
+    let path = dir.join(&e.file);
+    image::write_exr_with_layers(
+        &path,
+        &out.image,
+        &[(DIRECT, &direct), (INDIRECT, &out.indirect)],
+    )?;
+    let sum = manifest::checksum_of(&path)?;
+    manifest::write_atomically(&manifest::checksum_path(&path), sum.as_bytes())?;
+    Ok(out.stats)
+}
+
+/// A complete bake, opened for reading against the scene in hand.
+#[derive(Debug)]
+pub struct Bake {
+    pub dir: PathBuf,
+    pub manifest: Manifest,
+}
+
+/// One base image read back.
+#[derive(Debug)]
+pub struct BaseImage {
+    pub image: RangeImage,
+    /// Emission, direct light and traced specular reflection.
+    pub direct: Vec<Vec3>,
+    /// Diffuse indirect light at the surfaces seen.
+    pub indirect: Vec<Vec3>,
+}
+
+impl Bake {
+    /// Opens the bake in `dir`; refuses one that is unfinished or was made
+    /// from a scene that differs from `scene`, saying what changed.
+    pub fn open(dir: &Path, scene: &Scene) -> Result<Bake> {
+        let manifest = Manifest::read(dir)?;
+        let changes = manifest.scene_hash.differences(&ContentHash::of(scene)?);
+        if !changes.is_empty() {
+            bail!(
+                "{} was baked from {}, and {} differs from it: {}",
+                dir.display(),
+                manifest.scene.display(),
+                scene.source.display(),
+                changes.join(", ")
+            );
+        }
+        if !manifest.complete {
+            bail!(
+                "{} is not complete: run the same `rangewalk bake` command again to finish it",
+                dir.display()
+            );
+        }
+        Ok(Bake {
+            dir: dir.to_path_buf(),
+            manifest,
+        })
+    }
+
+    /// Reads image `k` (manifest order), checking its checksum.
+    pub fn read(&self, k: usize) -> Result<BaseImage> {
+        let e = self
+            .manifest
+            .images
+            .get(k)
+            .with_context(|| format!("{}: no image {k}", self.dir.display()))?;
+        let path = self.dir.join(&e.file);
+        if !manifest::verify(&path, e.fnv1a64.as_deref())? {
+            bail!(
+                "{}: missing or damaged (its checksum differs from the manifest's); run the bake again to re-render it",
+                path.display()
+            );
+        }
+        let (image, mut layers) = image::read_exr_with_layers(&path, &[DIRECT, INDIRECT])?;
+        let indirect = layers.pop().unwrap_or_default();
+        let direct = layers.pop().unwrap_or_default();
+        Ok(BaseImage {
+            image,
+            direct,
+            indirect,
+        })
+    }
+}

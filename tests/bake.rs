@@ -1,0 +1,402 @@
+//! Base-image bakes: images agree with direct renders, bakes resume and
+//! shard to exactly the single-machine result, and are refused for a scene
+//! that changed.
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use rangewalk::accel::{self, Backend, InstancedEngine};
+use rangewalk::bake::{self, size, BaseProjection, IndirectSource, Settings, Shard};
+use rangewalk::camera::{Camera, Projection};
+use rangewalk::eval::metrics::luminance;
+use rangewalk::plan::{Plan, PlannedView};
+use rangewalk::render::multipass::{self, Indirect};
+use rangewalk::render::{self, Progress, RenderSettings};
+use rangewalk::scene::Scene;
+
+fn scene_path(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
+        .join("scene.toml")
+}
+
+fn load(path: &Path) -> Scene {
+    Scene::load(path).unwrap_or_else(|e| panic!("{e:#}"))
+}
+
+fn engine(scene: &Scene, backend: Backend) -> Box<dyn InstancedEngine> {
+    accel::build(backend, &scene.geometry(), &scene.at(scene.animation.start)).unwrap()
+}
+
+/// Two views at the ends of the Cornell box's view space, at two times:
+/// what the planner gives at low quality, without depending on it.
+fn two_by_two(scene: &Scene) -> Plan {
+    let Some(rangewalk::scene::ViewSpace::Segment { a, b }) = scene.view_space else {
+        panic!("the Cornell box's view space is a segment");
+    };
+    let a_ = scene.animation;
+    Plan {
+        quality: 0.3,
+        views: [a, b]
+            .map(|position| PlannedView {
+                position,
+                times: vec![a_.start, a_.end],
+            })
+            .to_vec(),
+        light_times: vec![a_.start, a_.end],
+        steps: Vec::new(),
+        skipped: Vec::new(),
+    }
+}
+
+fn tiny(indirect: IndirectSource) -> Settings {
+    Settings {
+        quality: 0.3,
+        size: 48,
+        spp: 2,
+        projection: BaseProjection::Sphere,
+        indirect,
+        seed: 5,
+        backend: Backend::Bvh,
+        max_depth: None,
+    }
+}
+
+fn bake_into(scene: &Scene, dir: &Path, settings: &Settings, shard: Shard) -> bake::Summary {
+    let mut e = engine(scene, settings.backend);
+    let plan = two_by_two(scene);
+    bake::run(scene, dir, settings, shard, e.as_mut(), |_| Ok(plan))
+        .unwrap_or_else(|e| panic!("{e:#}"))
+}
+
+fn image_bytes(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let m = bake::Manifest::read(dir).unwrap();
+    m.images
+        .iter()
+        .map(|e| (e.file.clone(), std::fs::read(dir.join(&e.file)).unwrap()))
+        .collect()
+}
+
+#[test]
+fn shards_together_make_the_single_machine_bake_bit_for_bit() {
+    let scene = load(&scene_path("cornell-box"));
+    let tmp = tempfile::tempdir().unwrap();
+    let (whole, sharded) = (tmp.path().join("whole"), tmp.path().join("sharded"));
+    let settings = tiny(IndirectSource::Radiosity);
+    let s = bake_into(&scene, &whole, &settings, Shard::ALL);
+    assert_eq!((s.rendered, s.total, s.complete), (4, 4, true));
+    for index in 0..3 {
+        let s = bake_into(&scene, &sharded, &settings, Shard { index, count: 3 });
+        assert_eq!(s.complete, index == 2, "shard {index}: {s:?}");
+        assert_eq!(s.rendered, [2, 1, 1][index as usize]);
+    }
+    assert_eq!(image_bytes(&whole), image_bytes(&sharded));
+    assert_eq!(
+        bake::Manifest::read(&whole).unwrap(),
+        bake::Manifest::read(&sharded).unwrap()
+    );
+    // A finished bake started again renders nothing.
+    let again = bake_into(&scene, &whole, &settings, Shard::ALL);
+    assert_eq!((again.rendered, again.reused), (0, 4));
+}
+
+#[test]
+fn missing_and_damaged_images_are_rendered_again_and_nothing_else() {
+    let scene = load(&scene_path("cornell-box"));
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("bake");
+    let settings = tiny(IndirectSource::Path);
+    bake_into(&scene, &dir, &settings, Shard::ALL);
+    let before = image_bytes(&dir);
+    let m = bake::Manifest::read(&dir).unwrap();
+    // One image gone, one with a flipped byte, one cut short.
+    std::fs::remove_file(dir.join(&m.images[0].file)).unwrap();
+    let mut bytes = before[1].1.clone();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x40;
+    std::fs::write(dir.join(&m.images[1].file), &bytes).unwrap();
+    std::fs::write(dir.join(&m.images[2].file), &before[2].1[..100]).unwrap();
+    let opened = bake::Bake::open(&dir, &scene).unwrap();
+    let err = opened.read(1).expect_err("a damaged image is refused");
+    assert!(format!("{err:#}").contains("damaged"), "{err:#}");
+
+    let s = bake_into(&scene, &dir, &settings, Shard::ALL);
+    assert_eq!((s.rendered, s.reused), (3, 1), "{s:?}");
+    assert_eq!(image_bytes(&dir), before);
+}
+
+#[test]
+fn a_bake_is_refused_for_a_changed_or_scaled_scene_saying_what_changed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let copy = tmp.path().join("scene");
+    std::fs::create_dir(&copy).unwrap();
+    for f in ["scene.toml", "cornell-box.obj"] {
+        std::fs::copy(scene_path("cornell-box").with_file_name(f), copy.join(f)).unwrap();
+    }
+    let scene = load(&copy.join("scene.toml"));
+    let dir = tmp.path().join("bake");
+    let settings = tiny(IndirectSource::Path);
+    bake_into(&scene, &dir, &settings, Shard::ALL);
+    bake::Bake::open(&dir, &scene).expect("the bake fits its own scene");
+
+    // The scaled copy of the scene: other text, other meshes.
+    let scaled = load(&scene_path("cornell-box-1e4"));
+    let err = format!(
+        "{:#}",
+        bake::Bake::open(&dir, &scaled).expect_err("refused")
+    );
+    assert!(
+        err.contains("text") && err.contains("object `floor` changed"),
+        "{err}"
+    );
+
+    // An edited light: the text and the material.
+    let text = std::fs::read_to_string(copy.join("scene.toml")).unwrap();
+    let edited = text.replace("emission = [17, 12, 4]", "emission = [17, 12, 5]");
+    assert_ne!(text, edited);
+    std::fs::write(copy.join("scene.toml"), edited).unwrap();
+    let changed = load(&copy.join("scene.toml"));
+    let err = format!(
+        "{:#}",
+        bake::Bake::open(&dir, &changed).expect_err("refused")
+    );
+    assert!(err.contains("material `light` changed"), "{err}");
+    // Resuming it is refused too, and so is resuming with other settings.
+    let mut e = engine(&changed, Backend::Bvh);
+    let plan = two_by_two(&changed);
+    let err = bake::run(&changed, &dir, &settings, Shard::ALL, e.as_mut(), |_| {
+        Ok(plan)
+    });
+    assert!(err.is_err());
+    let more = Settings { spp: 4, ..settings };
+    let mut e = engine(&scene, Backend::Bvh);
+    let plan = two_by_two(&scene);
+    std::fs::write(copy.join("scene.toml"), &text).unwrap();
+    let scene = load(&copy.join("scene.toml"));
+    let err = bake::run(&scene, &dir, &more, Shard::ALL, e.as_mut(), |_| Ok(plan))
+        .expect_err("other settings are refused");
+    assert!(format!("{err:#}").contains("--spp 2, not 4"), "{err:#}");
+}
+
+#[test]
+fn base_images_hold_their_layers_and_first_hits() {
+    let scene = load(&scene_path("cornell-box"));
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("bake");
+    let settings = Settings {
+        size: 64,
+        spp: 4,
+        ..tiny(IndirectSource::Radiosity)
+    };
+    bake_into(&scene, &dir, &settings, Shard::ALL);
+    let b = bake::Bake::open(&dir, &scene).unwrap();
+    for k in 0..b.manifest.images.len() {
+        let base = b.read(k).unwrap();
+        let img = &base.image;
+        assert_eq!(img.meta.camera.projection, Projection::Sphere);
+        assert_eq!((img.width, img.height), (64, 64));
+        let e = &b.manifest.images[k];
+        assert_eq!(img.meta.time, e.time);
+        assert_eq!(
+            img.meta.camera.position,
+            b.manifest.plan.views[e.view].position
+        );
+        let mut indirect_sum = 0.0;
+        for i in 0..img.len() {
+            let sum = base.direct[i] + base.indirect[i];
+            assert!(
+                (sum - img.radiance[i]).abs().max_element()
+                    <= 1e-4 * img.radiance[i].max_element().max(1e-3)
+            );
+            assert!(base.indirect[i].min_element() >= 0.0);
+            indirect_sum += luminance(base.indirect[i]);
+        }
+        // Looking into the box from outside, most of the sphere sees it lit
+        // by bounced light as well as directly.
+        assert!(indirect_sum > 0.0, "image {k} has no indirect light");
+    }
+}
+
+/// Mean luminance over `b × b` blocks, row-major.
+fn blocks(img: &[Vec3], w: usize, b: usize) -> Vec<f64> {
+    let h = img.len() / w;
+    let mut out = Vec::new();
+    for by in 0..h / b {
+        for bx in 0..w / b {
+            let mut s = 0.0;
+            for y in by * b..(by + 1) * b {
+                for x in bx * b..(bx + 1) * b {
+                    s += luminance(img[y * w + x]);
+                }
+            }
+            out.push(s / (b * b) as f64);
+        }
+    }
+    out
+}
+
+fn relative_rms(a: &[f64], b: &[f64]) -> f64 {
+    let mean = b.iter().sum::<f64>() / b.len() as f64;
+    let ms = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / a.len() as f64;
+    ms.sqrt() / mean
+}
+
+#[test]
+fn a_sphere_base_image_resampled_into_a_pinhole_view_agrees_with_a_pinhole_render() {
+    let scene = load(&scene_path("cornell-box"));
+    let n = 64u32;
+    let pinhole = scene.camera("main").unwrap().perspective(n, n).unwrap();
+    let vfov = scene.camera("main").unwrap().vfov_deg;
+    // Twice as fine as the rule asks, at a quarter of the samples per pixel:
+    // each frame pixel then gathers about as many samples as the reference's.
+    let side = 2 * size::base_size(BaseProjection::Sphere, (n, n), vfov);
+    let sphere = Camera::looking(
+        pinhole.position,
+        pinhole.forward,
+        pinhole.up,
+        Projection::Sphere,
+        side,
+        side,
+    )
+    .unwrap();
+    let e = engine(&scene, Backend::default_available());
+    let s = |spp, seed| RenderSettings {
+        spp,
+        max_depth: None,
+        seed,
+    };
+    let base = multipass::render_layers(
+        &scene,
+        e.as_ref(),
+        &sphere,
+        0.0,
+        &s(16, 1),
+        Indirect::Traced,
+        Progress::Tiles,
+    )
+    .unwrap();
+    let reference = render::render(&scene, e.as_ref(), &pinhole, 0.0, &s(64, 2))
+        .unwrap()
+        .0;
+    let second = render::render(&scene, e.as_ref(), &pinhole, 0.0, &s(64, 3))
+        .unwrap()
+        .0;
+
+    // Each frame pixel: the base pixels under an 8 x 8 grid of its rays.
+    let k = 8;
+    let mut resampled = Vec::with_capacity((n * n) as usize);
+    for y in 0..n {
+        for x in 0..n {
+            let mut sum = Vec3::ZERO;
+            for j in 0..k {
+                for i in 0..k {
+                    let ray = pinhole
+                        .ray(
+                            x as f32 + (i as f32 + 0.5) / k as f32,
+                            y as f32 + (j as f32 + 0.5) / k as f32,
+                        )
+                        .unwrap();
+                    let p = sphere.project(sphere.position + ray.dir).unwrap();
+                    let (px, py) = ((p.x as u32).min(side - 1), (p.y as u32).min(side - 1));
+                    sum += base.image.radiance[(py * side + px) as usize];
+                }
+            }
+            resampled.push(sum / (k * k) as f32);
+        }
+    }
+    let mean = |v: &[Vec3]| v.iter().map(|&c| luminance(c)).sum::<f64>() / v.len() as f64;
+    let bias = mean(&resampled) / mean(&reference.radiance) - 1.0;
+    assert!(
+        bias.abs() < 0.01,
+        "resampled mean differs by {:.2}%",
+        100.0 * bias
+    );
+    // Resampling blurs by up to half a base pixel: harmless except at the
+    // light's outline, where a 300:1 step moves light between blocks. The
+    // blocks the outline crosses are compared by their total (light may
+    // move within them, not leave them); the rest block by block.
+    let w = n as usize;
+    let light = scene
+        .objects
+        .iter()
+        .position(|o| o.name == "light")
+        .unwrap() as u32;
+    let b = 8;
+    // Pixels on the light or next to it (a pixel whose centre misses the
+    // light may still be partly covered by it).
+    let near_light = |x: usize, y: usize| {
+        (y.saturating_sub(1)..(y + 2).min(w)).any(|v| {
+            (x.saturating_sub(1)..(x + 2).min(w)).any(|u| reference.object_id[v * w + u] == light)
+        })
+    };
+    let outline: Vec<bool> = (0..(w / b) * (w / b))
+        .map(|k| {
+            let (bx, by) = (k % (w / b), k / (w / b));
+            let near = (by * b..(by + 1) * b)
+                .flat_map(|y| (bx * b..(bx + 1) * b).map(move |x| (x, y)))
+                .filter(|&(x, y)| near_light(x, y))
+                .count();
+            near > 0
+        })
+        .collect();
+    assert!(outline.iter().any(|&o| o), "the light is in view");
+    let split = |img: &[Vec3]| {
+        let v = blocks(img, w, b);
+        let edge: f64 = v
+            .iter()
+            .zip(&outline)
+            .filter(|(_, &o)| o)
+            .map(|(x, _)| x)
+            .sum();
+        let rest: Vec<f64> = v
+            .iter()
+            .zip(&outline)
+            .filter(|(_, &o)| !o)
+            .map(|(&x, _)| x)
+            .collect();
+        (edge, rest)
+    };
+    let (ref_edge, ref_rest) = split(&reference.radiance);
+    let (second_edge, second_rest) = split(&second.radiance);
+    let (res_edge, res_rest) = split(&resampled);
+    let floor = relative_rms(&second_rest, &ref_rest);
+    let err = relative_rms(&res_rest, &ref_rest);
+    // Two independent estimates of equal variance differ by the noise floor;
+    // its estimate from ~60 blocks is good to about 10%, so 1.5x it leaves
+    // room for sampling luck but not for a misplaced or blurred image.
+    assert!(
+        err < 1.5 * floor,
+        "block RMS {err:.4} against a noise floor of {floor:.4}"
+    );
+    let edge_floor = (second_edge / ref_edge - 1.0).abs();
+    let edge_err = (res_edge / ref_edge - 1.0).abs();
+    println!(
+        "bias {:.3}%, block RMS {err:.4} (noise {floor:.4}), outline {:.2}% (noise {:.2}%)",
+        100.0 * bias,
+        100.0 * edge_err,
+        100.0 * edge_floor
+    );
+    assert!(
+        edge_err < 0.01 + 3.0 * edge_floor,
+        "light outline: {:.2}% off (noise {:.2}%)",
+        100.0 * edge_err,
+        100.0 * edge_floor
+    );
+}
+
+#[test]
+fn shards_parse_and_split_every_image_once() {
+    assert_eq!("2/5".parse::<Shard>(), Ok(Shard { index: 2, count: 5 }));
+    for bad in ["5/5", "1/0", "x/2", "3", "-1/2"] {
+        assert!(bad.parse::<Shard>().is_err(), "{bad}");
+    }
+    for count in 1..5 {
+        for k in 0..20 {
+            let owners = (0..count)
+                .filter(|&index| Shard { index, count }.owns(k))
+                .count();
+            assert_eq!(owners, 1);
+        }
+    }
+}

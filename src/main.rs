@@ -91,6 +91,9 @@ enum Command {
         #[arg(long, value_enum, default_value_t = Backend::default_available())]
         backend: Backend,
     },
+    /// Choose base views and their time lists from id-image fitness
+    /// (paper §4.1-4.2) and write the plan as JSON.
+    Plan(PlanArgs),
     /// Measure a stage against path-traced references and write a report.
     Experiment {
         #[command(subcommand)]
@@ -313,6 +316,7 @@ fn run(cli: Cli) -> Result<()> {
             println!("bake written to {}", out.display());
         }
         Command::Experiment { experiment } => rangewalk::eval::run(experiment)?,
+        Command::Plan(args) => plan(args)?,
     }
     Ok(())
 }
@@ -545,4 +549,147 @@ fn info(s: &Scene) {
     if !s.has_specular() {
         println!("  no glossy or mirror surfaces: no specular rays are traced");
     }
+}
+
+#[derive(clap::Args)]
+struct PlanArgs {
+    scene: PathBuf,
+    /// Quality in [0, 1]: the fitness every cell and interval must reach.
+    #[arg(long)]
+    quality: f32,
+    /// Write the plan here as JSON.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Side of the square id-images (default from the quality: 64 at 0 to 256 at 1).
+    #[arg(long)]
+    resolution: Option<u32>,
+    /// One master time list for every view (the paper's choice).
+    #[arg(long)]
+    master_list: bool,
+    #[arg(long, value_enum, default_value_t = Backend::default_available())]
+    backend: Backend,
+    /// Replace the scene's view space by the segment `x,y,z:x,y,z`.
+    #[arg(long, value_parser = parse_segment, allow_hyphen_values = true)]
+    view_segment: Option<rangewalk::scene::ViewSpace>,
+}
+
+fn parse_segment(s: &str) -> Result<rangewalk::scene::ViewSpace, String> {
+    let err = |why: &str| format!("`{s}` is not a segment x,y,z:x,y,z ({why})");
+    let point = |p: &str| -> Result<glam::Vec3, String> {
+        let v: Vec<f32> = p
+            .split(',')
+            .map(|c| c.trim().parse::<f32>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| err(&format!("`{p}`: {e}")))?;
+        match v[..] {
+            [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(glam::Vec3::new(x, y, z)),
+            _ => Err(err(&format!("`{p}` is not three finite numbers"))),
+        }
+    };
+    let (a, b) = s.split_once(':').ok_or_else(|| err("no `:`"))?;
+    Ok(rangewalk::scene::ViewSpace::Segment {
+        a: point(a)?,
+        b: point(b)?,
+    })
+}
+
+/// `rangewalk plan`: the plan, the fitness behind each choice and each
+/// step's time on stdout; the JSON in `--out`.
+fn plan(args: PlanArgs) -> Result<()> {
+    use rangewalk::plan::{self, PlanOptions};
+    let quality = Quality::new(args.quality).context("--quality")?;
+    if let Some(n) = args.resolution.filter(|n| !plan::RESOLUTIONS.contains(n)) {
+        bail!(
+            "--resolution {n} is outside [{}, {}]",
+            plan::RESOLUTIONS.start(),
+            plan::RESOLUTIONS.end()
+        );
+    }
+    let mut s = load(&args.scene)?;
+    if let Some(space) = args.view_segment {
+        s.view_space = Some(space);
+    }
+    let mut engine = accel::build(args.backend, &s.geometry(), &s.at(s.animation.start))
+        .with_context(|| format!("building the {} ray engine", args.backend))?;
+    let options = PlanOptions {
+        quality,
+        resolution: args.resolution,
+        master_list: args.master_list,
+    };
+    let p = plan::make(&s, engine.as_mut(), &options)?;
+    let list = |ts: &[f32]| {
+        ts.iter()
+            .map(|t| t.to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    println!(
+        "{}: quality {}, id-images {}x{}, backend {}, view space {}",
+        s.source.display(),
+        p.quality,
+        p.resolution,
+        p.resolution,
+        args.backend,
+        match s.view_space {
+            Some(v) => format!("{v:?}"),
+            None => "none".into(),
+        }
+    );
+    for l in &p.lights {
+        println!("  light camera: {l}");
+    }
+    println!(
+        "light times ({}): {}",
+        p.light_times.len(),
+        list(&p.light_times)
+    );
+    for c in &p.cells {
+        println!(
+            "  cell depth {} views {:?}: {}",
+            c.depth,
+            c.corners,
+            match (c.fitness, c.split) {
+                (None, _) => "not tested".to_string(),
+                (Some(f), true) => format!("fitness {f:.4} < {}: split", p.quality),
+                (Some(f), false) => format!("fitness {f:.4}: kept"),
+            }
+        );
+    }
+    println!("base views ({}):", p.views.len());
+    for (i, v) in p.views.iter().enumerate() {
+        println!(
+            "  view {i} at {}: {} times: {}",
+            v.position,
+            v.times.len(),
+            list(&v.times)
+        );
+    }
+    for t in &p.intervals {
+        let verdict = if t.split {
+            "split"
+        } else if t.fitness < p.quality {
+            "one frame apart, kept"
+        } else {
+            "coherent"
+        };
+        let whose = t.view.map_or("lights".to_string(), |v| format!("view {v}"));
+        println!(
+            "  {whose} [{}, {}]: fitness {:.4}: {verdict}",
+            t.t0, t.t1, t.fitness
+        );
+    }
+    for why in &p.skipped {
+        println!("skipped: {why}");
+    }
+    for st in &p.steps {
+        println!(
+            "step {}: {:.3} s, {} id-images",
+            st.name, st.seconds, st.id_images
+        );
+    }
+    if let Some(out) = &args.out {
+        p.save(out)?;
+        println!("plan written to {}", out.display());
+    }
+    Ok(())
 }

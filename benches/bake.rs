@@ -23,8 +23,12 @@ fn bake(c: &mut Criterion) {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml");
     let scene = Scene::load(&path).expect("loading the Cornell box");
     let q = Quality::new(0.6).expect("quality");
-    let mut solver = accel::build(Backend::default_available(), &scene.geometry(), &scene.at(0.0))
-        .expect("ray engine");
+    let mut solver = accel::build(
+        Backend::default_available(),
+        &scene.geometry(),
+        &scene.at(0.0),
+    )
+    .expect("ray engine");
     let simplified = radiosity::simplify(&scene, solver.as_mut(), q).expect("simplification");
     let series = temporal::decompose(&scene, &simplified, solver.as_mut(), q).expect("radiosity");
     let cache = IrradianceCache::new(&simplified, &series.indirect_at(TIME));

@@ -96,8 +96,14 @@ void write_image(rust::Str path_str, rust::Str format, const Raster &image) {
     }
     for (const Attribute &a : image.attributes)
         put_attribute(spec, a);
-    if (std::string(format) == "openexr")
+    if (std::string(format) == "openexr") {
         spec.attribute("compression", "zip");
+        // OpenImageIO stamps EXR files with the time of writing unless a
+        // date is given; an empty one keeps the same pixels the same bytes,
+        // which is what checksums of resumed and sharded bakes compare.
+        if (!spec.find_attribute("DateTime"))
+            spec.attribute("DateTime", "");
+    }
 
     // Both sample types are four bytes, so the file's native pixel layout
     // is a plain interleave of the 32-bit words.

@@ -8,11 +8,12 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 
 use rangewalk::accel::{self, Backend, InstancedEngine};
+use rangewalk::bake::{self, BaseProjection, IndirectSource, Shard};
 use rangewalk::camera::{Camera, Projection};
 use rangewalk::image::{self, RangeImage};
 use rangewalk::radiosity::lookup::IrradianceCache;
 use rangewalk::radiosity::temporal::{self, TimeSeries};
-use rangewalk::radiosity::{self, bake, Quality, Simplified};
+use rangewalk::radiosity::{self, bake as radiosity_bake, Quality, Simplified};
 use rangewalk::render::{self, multipass, RenderSettings, RenderStats};
 use rangewalk::scene::{Bsdf, Light, Scene};
 
@@ -94,6 +95,9 @@ enum Command {
     /// Choose base views and their time lists from id-image fitness
     /// (paper §4.1-4.2) and write the plan as JSON.
     Plan(PlanArgs),
+    /// Render the base range images of every (view, time) of the plan
+    /// (paper §4.4) into a bake directory; resumes an unfinished bake.
+    Bake(BakeArgs),
     /// Measure a stage against path-traced references and write a report.
     Experiment {
         #[command(subcommand)]
@@ -311,12 +315,13 @@ fn run(cli: Cli) -> Result<()> {
             let mut engine = accel::build(backend, &s.geometry(), &s.at(s.animation.start))
                 .with_context(|| format!("building the {backend} ray engine"))?;
             let (simplified, series) = solve_indirect(&s, engine.as_mut(), q)?;
-            bake::save_with(&out, &scene, &simplified, &series)?;
+            radiosity_bake::save_with(&out, &scene, &simplified, &series)?;
             report_radiosity(&s, &simplified, &series);
             println!("bake written to {}", out.display());
         }
         Command::Experiment { experiment } => rangewalk::eval::run(experiment)?,
         Command::Plan(args) => plan(args)?,
+        Command::Bake(args) => bake_command(args)?,
     }
     Ok(())
 }
@@ -354,12 +359,12 @@ fn render_multipass(
         .map(|q| Quality::new(q).context("--quality"))
         .transpose()?;
     let (simplified, series) = match &args.bake {
-        Some(dir) if dir.join(bake::MANIFEST).exists() => load_bake(s, dir, q)?,
+        Some(dir) if dir.join(radiosity_bake::MANIFEST).exists() => load_bake(s, dir, q)?,
         bake_dir => {
             let q = q.unwrap_or(Quality::new(0.5)?);
             let (simplified, series) = solve_indirect(s, engine, q)?;
             if let Some(dir) = bake_dir {
-                bake::save_with(dir, scene_path, &simplified, &series)?;
+                radiosity_bake::save_with(dir, scene_path, &simplified, &series)?;
                 eprintln!("bake written to {}", dir.display());
             }
             (simplified, series)
@@ -385,7 +390,7 @@ fn solve_indirect(
 
 /// A bake made for this scene (at quality `q`, if given).
 fn load_bake(s: &Scene, dir: &Path, q: Option<Quality>) -> Result<(Simplified, TimeSeries)> {
-    let (simplified, series, info) = bake::load_with_info(dir)?;
+    let (simplified, series, info) = radiosity_bake::load_with_info(dir)?;
     if let Some(q) = q.filter(|q| q.get() != info.quality) {
         bail!(
             "{} was baked at quality {}, not {}: pass --quality {} or another --bake directory",
@@ -690,6 +695,162 @@ fn plan(args: PlanArgs) -> Result<()> {
     if let Some(out) = &args.out {
         p.save(out)?;
         println!("plan written to {}", out.display());
+    }
+    Ok(())
+}
+
+#[derive(clap::Args)]
+struct BakeArgs {
+    scene: PathBuf,
+    /// Quality in [0, 1] of every stage: views, times, radiosity.
+    #[arg(long)]
+    quality: f32,
+    /// Bake directory: created, or resumed if it holds an unfinished bake of
+    /// the same scene and settings.
+    #[arg(long)]
+    out: PathBuf,
+    /// Side of the square base images (default: from --frame-size and the
+    /// scene's narrowest field of view).
+    #[arg(long)]
+    size: Option<u32>,
+    /// Size of the frames that will be synthesized, `<W>x<H>`: sets the
+    /// default --size so that no base pixel is coarser than a frame pixel.
+    #[arg(long, default_value = "512x512", value_parser = image::parse_size)]
+    frame_size: (u32, u32),
+    /// Samples per base-image pixel.
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+    #[arg(long, value_enum, default_value_t = BaseProjection::Sphere)]
+    projection: BaseProjection,
+    /// Diffuse indirect light: radiosity records (the paper's multipass
+    /// renderer) or traced.
+    #[arg(long, value_enum, default_value_t = IndirectSource::Radiosity)]
+    indirect: IndirectSource,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Bake only every n-th image from the i-th (`i/n`, i from 0), so that
+    /// n machines can share one bake directory.
+    #[arg(long, default_value = "0/1")]
+    shard: Shard,
+    #[arg(long, value_enum, default_value_t = Backend::default_available())]
+    backend: Backend,
+    /// Longest path, counted as Mitsuba's `max_depth`; unlimited by default.
+    #[arg(long)]
+    max_depth: Option<u32>,
+    /// Side of the planner's id-images (default from the quality).
+    #[arg(long)]
+    resolution: Option<u32>,
+    /// One master time list for every view (the paper's choice).
+    #[arg(long)]
+    master_list: bool,
+}
+
+/// `rangewalk bake`: plan (when starting), radiosity (once), then this
+/// shard's missing base images, with progress and a summary.
+fn bake_command(args: BakeArgs) -> Result<()> {
+    use rangewalk::plan::{self, PlanOptions};
+    let quality = Quality::new(args.quality).context("--quality")?;
+    let s = load(&args.scene)?;
+    let size = match args.size {
+        Some(0) => bail!("--size must be at least 1"),
+        Some(n) => {
+            println!("base images: {n}x{n} {:?} (--size)", args.projection);
+            n
+        }
+        None => {
+            let (w, h) = args.frame_size;
+            let Some(fov) = bake::size::narrowest_fov(&s) else {
+                bail!(
+                    "{} has no camera or walk path to size base images from: pass --size",
+                    s.source.display()
+                );
+            };
+            let n = bake::size::base_size(args.projection, args.frame_size, fov);
+            println!(
+                "base images: {n}x{n} {}, so that no base pixel is coarser than a pixel of a {w}x{h} frame at the scene's narrowest field of view, {fov}°",
+                format!("{:?}", args.projection).to_lowercase()
+            );
+            n
+        }
+    };
+    let settings = bake::Settings {
+        quality: quality.get(),
+        size,
+        spp: args.spp,
+        projection: args.projection,
+        indirect: args.indirect,
+        seed: args.seed,
+        backend: args.backend,
+        max_depth: args.max_depth,
+    };
+    let mut engine = accel::build(args.backend, &s.geometry(), &s.at(s.animation.start))
+        .with_context(|| format!("building the {} ray engine", args.backend))?;
+    let options = PlanOptions {
+        quality,
+        resolution: args.resolution,
+        master_list: args.master_list,
+    };
+    let summary = bake::run(&s, &args.out, &settings, args.shard, engine.as_mut(), |e| {
+        plan::make(&s, e, &options)
+    })?;
+    let manifest = bake::Manifest::read(&args.out)?;
+    let p = &manifest.plan;
+    match summary.plan_seconds {
+        Some(t) => println!(
+            "plan: {} views, {} images, {t:.3} s",
+            p.views.len(),
+            manifest.images.len()
+        ),
+        None => println!(
+            "plan: {} views, {} images (from the bake's manifest)",
+            p.views.len(),
+            manifest.images.len()
+        ),
+    }
+    for (i, v) in p.views.iter().enumerate() {
+        let times: Vec<String> = v.times.iter().map(|t| t.to_string()).collect();
+        println!("  view {i} at {}: times {}", v.position, times.join(", "));
+    }
+    for why in &p.skipped {
+        println!("  skipped: {why}");
+    }
+    match (args.indirect, summary.radiosity_seconds) {
+        (IndirectSource::Path, _) => println!("radiosity skipped: indirect light is traced"),
+        (IndirectSource::Radiosity, Some(t)) => println!("radiosity: solved in {t:.3} s"),
+        (IndirectSource::Radiosity, None) if summary.rendered > 0 => println!(
+            "radiosity: reused from {}",
+            args.out.join(bake::manifest::RADIOSITY).display()
+        ),
+        (IndirectSource::Radiosity, None) => {}
+    }
+    if !s.has_specular() {
+        println!("specular rays skipped: no glossy or mirror surfaces");
+    }
+    let shard = if args.shard.count > 1 {
+        format!(" (shard {}/{})", args.shard.index, args.shard.count)
+    } else {
+        String::new()
+    };
+    println!(
+        "images{shard}: {} rendered, {} already done; {} of {} in the bake finished",
+        summary.rendered, summary.reused, summary.finished, summary.total
+    );
+    if summary.rendered > 0 {
+        let t = summary.render_seconds;
+        println!(
+            "  {t:.3} s, {:.3} M samples/s, {:.2} M shaded rays/s, backend {}",
+            summary.samples as f64 / t / 1e6,
+            summary.rays as f64 / t / 1e6,
+            args.backend
+        );
+    }
+    if summary.complete {
+        println!("bake complete: {}", args.out.display());
+    } else {
+        println!(
+            "bake not complete: {} images missing; run the other shards (or this command again)",
+            summary.total - summary.finished
+        );
     }
     Ok(())
 }

@@ -7,6 +7,7 @@ use std::process::{Child, Command, Output};
 use std::time::{Duration, Instant};
 
 use rangewalk::bake::Manifest;
+use rangewalk::scene::hash::fnv1a64;
 
 fn scene(name: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -19,8 +20,18 @@ fn scene(name: &str) -> String {
 
 fn args<'a>(scene: &'a str, out: &'a str) -> Vec<&'a str> {
     vec![
-        "bake", scene, "--quality", "0.3", "--out", out, "--size", "96", "--spp", "8",
-        "--backend", "bvh",
+        "bake",
+        scene,
+        "--quality",
+        "0.3",
+        "--out",
+        out,
+        "--size",
+        "96",
+        "--spp",
+        "8",
+        "--backend",
+        "bvh",
     ]
 }
 
@@ -68,12 +79,18 @@ fn checksums(dir: &Path) -> usize {
         .unwrap_or(0)
 }
 
-fn images(dir: &Path) -> Vec<(String, Vec<u8>)> {
+/// Each image's file and a hash of its bytes.
+fn images(dir: &Path) -> Vec<(String, u64)> {
     let m = Manifest::read(dir).unwrap();
     assert!(m.complete, "{} is not complete", dir.display());
     m.images
         .iter()
-        .map(|e| (e.file.clone(), std::fs::read(dir.join(&e.file)).unwrap()))
+        .map(|e| {
+            (
+                e.file.clone(),
+                fnv1a64(&std::fs::read(dir.join(&e.file)).unwrap()),
+            )
+        })
         .collect()
 }
 
@@ -101,10 +118,16 @@ fn a_killed_bake_started_again_equals_an_uninterrupted_one() {
     let o = run(&args(&scene, k));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let out = String::from_utf8_lossy(&o.stdout);
-    assert!(out.contains("already done") && out.contains("bake complete"), "{out}");
+    assert!(
+        out.contains("already done") && out.contains("bake complete"),
+        "{out}"
+    );
 
     assert_eq!(images(&whole), images(&killed));
-    let (a, b) = (Manifest::read(&whole).unwrap(), Manifest::read(&killed).unwrap());
+    let (a, b) = (
+        Manifest::read(&whole).unwrap(),
+        Manifest::read(&killed).unwrap(),
+    );
     assert_eq!(a.images, b.images);
     assert_eq!(a.plan.views, b.plan.views);
     // No temporary file is left looking like an image.
@@ -129,7 +152,16 @@ fn bake_errors_name_the_option_or_file_at_fault() {
             "--quality",
         ),
         (
-            vec!["bake", &scene, "--quality", "0.3", "--out", o, "--shard", "2/2"],
+            vec![
+                "bake",
+                &scene,
+                "--quality",
+                "0.3",
+                "--out",
+                o,
+                "--shard",
+                "2/2",
+            ],
             "shard `2/2`",
         ),
         (
@@ -137,7 +169,14 @@ fn bake_errors_name_the_option_or_file_at_fault() {
             "--spp",
         ),
         (
-            vec!["bake", "/nonexistent/scene.toml", "--quality", "0.3", "--out", o],
+            vec![
+                "bake",
+                "/nonexistent/scene.toml",
+                "--quality",
+                "0.3",
+                "--out",
+                o,
+            ],
             "/nonexistent/scene.toml",
         ),
     ];

@@ -29,7 +29,7 @@ pub use times::{Frames, IntervalTest};
 pub use views::CellTest;
 
 /// The base views of a scene and the times each is rendered at.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
     /// The quality `q` every subdivision followed.
     pub quality: f32,

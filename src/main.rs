@@ -754,7 +754,10 @@ fn bake_command(args: BakeArgs) -> Result<()> {
     let size = match args.size {
         Some(0) => bail!("--size must be at least 1"),
         Some(n) => {
-            println!("base images: {n}x{n} {:?} (--size)", args.projection);
+            println!(
+                "base images: {n}x{n} {} (--size)",
+                format!("{:?}", args.projection).to_lowercase()
+            );
             n
         }
         None => {

@@ -120,6 +120,7 @@ fn engines_give_the_same_ids() {
             );
         }
     }
+    eprintln!("{differ} of {compared} pixels differ between the engines");
     if all.len() > 1 {
         assert!(compared > 100_000, "{compared} pixels compared");
         assert!(
@@ -542,4 +543,34 @@ fn fisheye_corners_do_not_count() {
         "{frac}"
     );
     assert_eq!(fitness(&[&im, &im.clone()]), 1.0);
+}
+
+/// A box view space (3D) splits in eight: shared corners stay one view and
+/// every view lies in the box.
+#[test]
+fn box_view_space_subdivides_in_3d() {
+    let mut s = load("cornell-box");
+    let (min, max) = (
+        Vec3::new(100.0, 100.0, 100.0),
+        Vec3::new(450.0, 500.0, 500.0),
+    );
+    s.view_space = Some(ViewSpace::Box { min, max });
+    let p = plan_with(&s, 0.9, Some(16), false);
+    assert!(p.views.len() > 8, "{} views", p.views.len());
+    assert!(p.cells.iter().any(|c| c.split && c.corners.len() == 8));
+    let mut keys: Vec<[u32; 3]> = p
+        .views
+        .iter()
+        .map(|v| v.position.to_array().map(f32::to_bits))
+        .collect();
+    keys.sort();
+    keys.dedup();
+    assert_eq!(keys.len(), p.views.len());
+    for v in &p.views {
+        assert!(
+            v.position.cmpge(min).all() && v.position.cmple(max).all(),
+            "{}",
+            v.position
+        );
+    }
 }

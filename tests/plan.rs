@@ -69,7 +69,7 @@ fn sphere_image(e: &dyn InstancedEngine, at: Vec3, size: u32) -> idimage::IdImag
 /// edge within a rounding error, where the two engines' different
 /// intersection arithmetic may pick different sides; such rays are a
 /// vanishing fraction of the pixels, so 1 in 1000 leaves room for a few of
-/// them on these ~270k pixels without hiding a real disagreement (a wrong
+/// them on these ~430k pixels without hiding a real disagreement (a wrong
 /// transform or id mapping changes whole regions).
 #[test]
 fn engines_give_the_same_ids() {

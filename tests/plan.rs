@@ -574,3 +574,25 @@ fn box_view_space_subdivides_in_3d() {
         );
     }
 }
+
+/// The Cornell box scaled by 1e-4 and 1e4 plans the same views (scaled)
+/// and the same times: nothing in planning depends on the scene's units.
+#[test]
+fn plans_do_not_depend_on_scale() {
+    let base = plan_with(&load("cornell-box"), 0.98, Some(32), false);
+    assert!(base.views.len() > 2 && base.light_times.len() > 2);
+    for (name, scale) in [("cornell-box-1e-4", 1e-4f32), ("cornell-box-1e4", 1e4)] {
+        let p = plan_with(&load(name), 0.98, Some(32), false);
+        assert_eq!(p.views.len(), base.views.len(), "{name}");
+        assert_eq!(p.light_times, base.light_times, "{name}");
+        for (v, b) in p.views.iter().zip(&base.views) {
+            assert_eq!(v.times, b.times, "{name}");
+            let want = b.position * scale;
+            assert!(
+                (v.position - want).length() <= 1e-5 * want.length(),
+                "{name}: {} vs {want}",
+                v.position
+            );
+        }
+    }
+}

@@ -602,6 +602,7 @@ fn parse_segment(s: &str) -> Result<rangewalk::scene::ViewSpace, String> {
 /// step's time on stdout; the JSON in `--out`.
 fn plan(args: PlanArgs) -> Result<()> {
     use rangewalk::plan::{self, PlanOptions};
+    use rangewalk::scene::ViewSpace;
     let quality = Quality::new(args.quality).context("--quality")?;
     if let Some(n) = args.resolution.filter(|n| !plan::RESOLUTIONS.contains(n)) {
         bail!(
@@ -636,7 +637,9 @@ fn plan(args: PlanArgs) -> Result<()> {
         p.resolution,
         args.backend,
         match s.view_space {
-            Some(v) => format!("{v:?}"),
+            Some(ViewSpace::Segment { a, b }) => format!("segment {a} to {b}"),
+            Some(ViewSpace::Rectangle { min, max }) => format!("rectangle {min} to {max}"),
+            Some(ViewSpace::Box { min, max }) => format!("box {min} to {max}"),
             None => "none".into(),
         }
     );

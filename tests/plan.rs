@@ -69,7 +69,7 @@ fn sphere_image(e: &dyn InstancedEngine, at: Vec3, size: u32) -> idimage::IdImag
 /// edge within a rounding error, where the two engines' different
 /// intersection arithmetic may pick different sides; such rays are a
 /// vanishing fraction of the pixels, so 1 in 1000 leaves room for a few of
-/// them on these ~270k pixels without hiding a real disagreement (a wrong
+/// them on these ~430k pixels without hiding a real disagreement (a wrong
 /// transform or id mapping changes whole regions).
 #[test]
 fn engines_give_the_same_ids() {
@@ -120,6 +120,7 @@ fn engines_give_the_same_ids() {
             );
         }
     }
+    eprintln!("{differ} of {compared} pixels differ between the engines");
     if all.len() > 1 {
         assert!(compared > 100_000, "{compared} pixels compared");
         assert!(
@@ -542,4 +543,56 @@ fn fisheye_corners_do_not_count() {
         "{frac}"
     );
     assert_eq!(fitness(&[&im, &im.clone()]), 1.0);
+}
+
+/// A box view space (3D) splits in eight: shared corners stay one view and
+/// every view lies in the box.
+#[test]
+fn box_view_space_subdivides_in_3d() {
+    let mut s = load("cornell-box");
+    let (min, max) = (
+        Vec3::new(100.0, 100.0, 100.0),
+        Vec3::new(450.0, 500.0, 500.0),
+    );
+    s.view_space = Some(ViewSpace::Box { min, max });
+    let p = plan_with(&s, 0.9, Some(16), false);
+    assert!(p.views.len() > 8, "{} views", p.views.len());
+    assert!(p.cells.iter().any(|c| c.split && c.corners.len() == 8));
+    let mut keys: Vec<[u32; 3]> = p
+        .views
+        .iter()
+        .map(|v| v.position.to_array().map(f32::to_bits))
+        .collect();
+    keys.sort();
+    keys.dedup();
+    assert_eq!(keys.len(), p.views.len());
+    for v in &p.views {
+        assert!(
+            v.position.cmpge(min).all() && v.position.cmple(max).all(),
+            "{}",
+            v.position
+        );
+    }
+}
+
+/// The Cornell box scaled by 1e-4 and 1e4 plans the same views (scaled)
+/// and the same times: nothing in planning depends on the scene's units.
+#[test]
+fn plans_do_not_depend_on_scale() {
+    let base = plan_with(&load("cornell-box"), 0.98, Some(32), false);
+    assert!(base.views.len() > 2 && base.light_times.len() > 2);
+    for (name, scale) in [("cornell-box-1e-4", 1e-4f32), ("cornell-box-1e4", 1e4)] {
+        let p = plan_with(&load(name), 0.98, Some(32), false);
+        assert_eq!(p.views.len(), base.views.len(), "{name}");
+        assert_eq!(p.light_times, base.light_times, "{name}");
+        for (v, b) in p.views.iter().zip(&base.views) {
+            assert_eq!(v.times, b.times, "{name}");
+            let want = b.position * scale;
+            assert!(
+                (v.position - want).length() <= 1e-5 * want.length(),
+                "{name}: {} vs {want}",
+                v.position
+            );
+        }
+    }
 }

@@ -101,8 +101,10 @@ pub fn default_resolution(q: Quality) -> u32 {
     16 * (side / 16.0).round() as u32
 }
 
-/// Plans base views and their times for `scene`. The engine is posed with
-/// `scene.at(t)` at every time it needs and left posed at the last one.
+/// Plans base views and their times for `scene`. `engine` must hold
+/// `scene.geometry()`; planning poses it with `scene.at(t)` at every time
+/// it needs and leaves it posed at the last one, so a caller that traces
+/// afterwards poses it again.
 pub fn make(
     scene: &Scene,
     engine: &mut dyn InstancedEngine,

@@ -9,10 +9,10 @@ use rangewalk::accel::{self, Backend, InstancedEngine};
 use rangewalk::bake::{self, size, BaseProjection, IndirectSource, Settings, Shard};
 use rangewalk::camera::{Camera, Projection};
 use rangewalk::eval::metrics::luminance;
+use rangewalk::image::exr_content_hash;
 use rangewalk::plan::{Plan, PlannedView};
 use rangewalk::render::multipass::{self, Indirect};
 use rangewalk::render::{self, Progress, RenderSettings};
-use rangewalk::scene::hash::fnv1a64;
 use rangewalk::scene::Scene;
 
 fn scene_path(name: &str) -> PathBuf {
@@ -70,18 +70,12 @@ fn bake_into(scene: &Scene, dir: &Path, settings: &Settings, shard: Shard) -> ba
         .unwrap_or_else(|e| panic!("{e:#}"))
 }
 
-/// Each image's file and a hash of its bytes (equal hashes: equal bytes,
-/// but a failure prints 16 digits rather than megabytes).
-fn image_bytes(dir: &Path) -> Vec<(String, u64)> {
+/// Each image's file and a hash of every bit of its channels and metadata.
+fn image_contents(dir: &Path) -> Vec<(String, u64)> {
     let m = bake::Manifest::read(dir).unwrap();
     m.images
         .iter()
-        .map(|e| {
-            (
-                e.file.clone(),
-                fnv1a64(&std::fs::read(dir.join(&e.file)).unwrap()),
-            )
-        })
+        .map(|e| (e.file.clone(), exr_content_hash(dir.join(&e.file)).unwrap()))
         .collect()
 }
 
@@ -98,7 +92,7 @@ fn shards_together_make_the_single_machine_bake_bit_for_bit() {
         assert_eq!(s.complete, index == 2, "shard {index}: {s:?}");
         assert_eq!(s.rendered, [2, 1, 1][index as usize]);
     }
-    assert_eq!(image_bytes(&whole), image_bytes(&sharded));
+    assert_eq!(image_contents(&whole), image_contents(&sharded));
     assert_eq!(
         bake::Manifest::read(&whole).unwrap(),
         bake::Manifest::read(&sharded).unwrap()
@@ -115,7 +109,7 @@ fn missing_and_damaged_images_are_rendered_again_and_nothing_else() {
     let dir = tmp.path().join("bake");
     let settings = tiny(IndirectSource::Path);
     bake_into(&scene, &dir, &settings, Shard::ALL);
-    let before = image_bytes(&dir);
+    let before = image_contents(&dir);
     let m = bake::Manifest::read(&dir).unwrap();
     // One image gone, one with a flipped byte, one cut short.
     std::fs::remove_file(dir.join(&m.images[0].file)).unwrap();
@@ -131,7 +125,7 @@ fn missing_and_damaged_images_are_rendered_again_and_nothing_else() {
 
     let s = bake_into(&scene, &dir, &settings, Shard::ALL);
     assert_eq!((s.rendered, s.reused), (3, 1), "{s:?}");
-    assert_eq!(image_bytes(&dir), before);
+    assert_eq!(image_contents(&dir), before);
 }
 
 #[test]

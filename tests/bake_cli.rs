@@ -7,7 +7,7 @@ use std::process::{Child, Command, Output};
 use std::time::{Duration, Instant};
 
 use rangewalk::bake::Manifest;
-use rangewalk::scene::hash::fnv1a64;
+use rangewalk::image::exr_content_hash;
 
 fn scene(name: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -79,18 +79,13 @@ fn checksums(dir: &Path) -> usize {
         .unwrap_or(0)
 }
 
-/// Each image's file and a hash of its bytes.
+/// Each image's file and a hash of every bit of its channels and metadata.
 fn images(dir: &Path) -> Vec<(String, u64)> {
     let m = Manifest::read(dir).unwrap();
     assert!(m.complete, "{} is not complete", dir.display());
     m.images
         .iter()
-        .map(|e| {
-            (
-                e.file.clone(),
-                fnv1a64(&std::fs::read(dir.join(&e.file)).unwrap()),
-            )
-        })
+        .map(|e| (e.file.clone(), exr_content_hash(dir.join(&e.file)).unwrap()))
         .collect()
 }
 

@@ -5,6 +5,8 @@
 //! image has a checksum file beside it, written after the image; the
 //! manifest gathers them when the last image is done. An image without a
 //! matching checksum file is unfinished or damaged, and is rendered again.
+//! Checksums are of the decoded content, not of the file's bytes: the
+//! pure-Rust EXR writer orders header attributes differently every time.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -12,8 +14,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
+use crate::image;
 use crate::plan::Plan;
-use crate::scene::hash::{fnv1a64, ContentHash};
+use crate::scene::hash::ContentHash;
 
 use super::Settings;
 
@@ -50,7 +53,9 @@ pub struct ImageEntry {
     pub time: f32,
     /// Path relative to the bake directory.
     pub file: String,
-    /// FNV-1a 64 of the file's bytes (16 hex digits), once complete.
+    /// FNV-1a 64 of the image's content (16 hex digits: every channel and
+    /// the `rangewalk:*` attributes, as `image::exr_content_hash`), once
+    /// the bake is complete.
     pub fnv1a64: Option<String>,
 }
 
@@ -92,27 +97,33 @@ pub fn checksum_path(image: &Path) -> PathBuf {
     PathBuf::from(name)
 }
 
-/// The file's checksum, as 16 hex digits.
-pub fn checksum_of(path: &Path) -> Result<String> {
-    let bytes = fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    Ok(format!("{:016x}", fnv1a64(&bytes)))
+/// A checksum as the manifest writes it: 16 hex digits.
+pub fn hex(sum: u64) -> String {
+    format!("{sum:016x}")
 }
 
-/// Whether the image is finished and undamaged: it exists and its bytes
-/// match the checksum recorded after it was written (`expected` where the
+/// The image's checksum: of its content (channels and metadata), not of
+/// its bytes, so that it is the same whichever EXR writer made the file.
+/// `None` where the file is missing or cannot be read (cut short, corrupt).
+pub fn checksum_of(path: &Path) -> Option<String> {
+    image::exr_content_hash(path).ok().map(hex)
+}
+
+/// Whether the image is finished and undamaged: it reads, and its content
+/// matches the checksum recorded after it was written (`expected` where the
 /// manifest already holds it, else the checksum file).
-pub fn verify(path: &Path, expected: Option<&str>) -> Result<bool> {
+pub fn verify(path: &Path, expected: Option<&str>) -> bool {
     if !path.exists() {
-        return Ok(false);
+        return false;
     }
     let recorded = match expected {
         Some(sum) => sum.to_string(),
         None => match fs::read_to_string(checksum_path(path)) {
             Ok(s) => s.trim().to_string(),
-            Err(_) => return Ok(false),
+            Err(_) => return false,
         },
     };
-    Ok(checksum_of(path)? == recorded)
+    checksum_of(path).is_some_and(|sum| sum == recorded)
 }
 
 /// Writes `bytes` to a temporary file beside `target` and renames it into

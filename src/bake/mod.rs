@@ -257,7 +257,7 @@ pub fn run(
     let mut todo = Vec::new();
     for &k in &mine {
         let e = &manifest.images[k];
-        if manifest::verify(&dir.join(&e.file), e.fnv1a64.as_deref())? {
+        if manifest::verify(&dir.join(&e.file), e.fnv1a64.as_deref()) {
             summary.reused += 1;
         } else {
             todo.push(k);
@@ -303,21 +303,42 @@ pub fn run(
         summary.render_seconds = start.elapsed().as_secs_f64();
     }
 
-    // Gather every shard's checksums; the bake is complete when none is
-    // missing.
-    let mut sums = Vec::with_capacity(manifest.images.len());
-    for e in &manifest.images {
-        let path = dir.join(&e.file);
-        let ok = manifest::verify(&path, e.fnv1a64.as_deref())?;
-        sums.push(ok.then(|| manifest::checksum_of(&path)).transpose()?);
-    }
-    summary.finished = sums.iter().filter(|s| s.is_some()).count();
+    // Gather every shard's checksums; when none is missing, check every
+    // image once more and mark the bake complete.
+    let recorded: Vec<Option<String>> = manifest
+        .images
+        .iter()
+        .map(|e| {
+            e.fnv1a64.clone().or_else(|| {
+                std::fs::read_to_string(manifest::checksum_path(&dir.join(&e.file)))
+                    .ok()
+                    .map(|s| s.trim().to_string())
+            })
+        })
+        .collect();
+    summary.finished = recorded.iter().flatten().count();
     if summary.finished == summary.total && !manifest.complete {
-        for (e, s) in manifest.images.iter_mut().zip(sums) {
-            e.fnv1a64 = s;
+        let damaged: Vec<&str> = manifest
+            .images
+            .iter()
+            .zip(&recorded)
+            .filter(|(e, sum)| !manifest::verify(&dir.join(&e.file), sum.as_deref()))
+            .map(|(e, _)| e.file.as_str())
+            .collect();
+        if damaged.is_empty() {
+            for (e, sum) in manifest.images.iter_mut().zip(recorded) {
+                e.fnv1a64 = sum;
+            }
+            manifest.complete = true;
+            manifest.write(dir)?;
+        } else {
+            summary.finished -= damaged.len();
+            eprintln!(
+                "warning: {} damaged since they were written: {}; run the bake again to re-render them",
+                damaged.len(),
+                damaged.join(", ")
+            );
         }
-        manifest.complete = true;
-        manifest.write(dir)?;
     }
     summary.complete = manifest.complete;
     Ok(summary)
@@ -443,13 +464,15 @@ fn render_image(
         .map(|(l, i)| *l - *i)
         .collect();
     let path = dir.join(&e.file);
-    image::write_exr_with_layers(
+    let sum = image::write_exr_with_layers(
         &path,
         &out.image,
         &[(DIRECT, &direct), (INDIRECT, &out.indirect)],
     )?;
-    let sum = manifest::checksum_of(&path)?;
-    manifest::write_atomically(&manifest::checksum_path(&path), sum.as_bytes())?;
+    manifest::write_atomically(
+        &manifest::checksum_path(&path),
+        manifest::hex(sum).as_bytes(),
+    )?;
     Ok(out.stats)
 }
 
@@ -505,7 +528,7 @@ impl Bake {
             .get(k)
             .with_context(|| format!("{}: no image {k}", self.dir.display()))?;
         let path = self.dir.join(&e.file);
-        if !manifest::verify(&path, e.fnv1a64.as_deref())? {
+        if !manifest::verify(&path, e.fnv1a64.as_deref()) {
             bail!(
                 "{}: missing or damaged (its checksum differs from the manifest's); run the bake again to re-render it",
                 path.display()

@@ -133,12 +133,13 @@ pub fn read_exr(path: impl AsRef<Path>) -> Result<RangeImage> {
 }
 
 /// Writes a range image with further named RGB layers (channels
-/// `<name>.R`, `<name>.G`, `<name>.B`) as OpenEXR.
+/// `<name>.R`, `<name>.G`, `<name>.B`) as OpenEXR; returns the content hash
+/// of what it wrote ([`exr_content_hash`] of the file).
 pub fn write_exr_with_layers(
     path: impl AsRef<Path>,
     image: &RangeImage,
     layers: &[(&str, &[Vec3])],
-) -> Result<()> {
+) -> Result<u64> {
     let path = path.as_ref();
     let planes = (|| {
         let mut planes = planes::Planes::from_range(image)?;
@@ -149,9 +150,24 @@ pub fn write_exr_with_layers(
     })()
     .with_context(|| format!("writing {}", path.display()))?;
     #[cfg(feature = "oiio")]
-    return write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Exr, &planes));
+    write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Exr, &planes))?;
     #[cfg(not(feature = "oiio"))]
-    write_atomically(path, |tmp| exr_io::write_planes(tmp, &planes))
+    write_atomically(path, |tmp| exr_io::write_planes(tmp, &planes))?;
+    Ok(planes.content_hash())
+}
+
+/// A hash of an EXR file's channels and `rangewalk:*` attributes,
+/// independent of how the file encodes them (see
+/// `Planes::content_hash`); an error where the file cannot be read.
+pub fn exr_content_hash(path: impl AsRef<Path>) -> Result<u64> {
+    Ok(read_planes(path.as_ref())?.content_hash())
+}
+
+fn read_planes(path: &Path) -> Result<planes::Planes> {
+    #[cfg(feature = "oiio")]
+    return oiio::read(path);
+    #[cfg(not(feature = "oiio"))]
+    exr_io::read_planes(path)
 }
 
 /// Reads a range image written by [`write_exr_with_layers`] and the named
@@ -161,10 +177,7 @@ pub fn read_exr_with_layers(
     layers: &[&str],
 ) -> Result<(RangeImage, Vec<Vec<Vec3>>)> {
     let path = path.as_ref();
-    #[cfg(feature = "oiio")]
-    let planes = oiio::read(path)?;
-    #[cfg(not(feature = "oiio"))]
-    let planes = exr_io::read_planes(path)?;
+    let planes = read_planes(path)?;
     let values = layers
         .iter()
         .map(|name| planes.rgb(name))

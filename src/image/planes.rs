@@ -12,6 +12,7 @@ use glam::Vec3;
 use super::color::srgb_decode;
 use super::{RangeImage, RangeMeta};
 use crate::camera::{Camera, Projection};
+use crate::scene::hash::Fnv;
 use crate::scene::Texture;
 
 /// One channel's samples, row-major, top row first.
@@ -191,6 +192,47 @@ impl Planes {
         let [r, g, b] = RADIANCE.map(|c| self.f32_plane(&format!("{name}.{c}")));
         let (r, g, b) = (r?, g?, b?);
         Ok((0..r.len()).map(|i| Vec3::new(r[i], g[i], b[i])).collect())
+    }
+
+    /// A hash of what the planes hold: every channel's name and samples and
+    /// every `rangewalk:*` attribute, in name order. It does not depend on
+    /// how a file encodes them (the order of header attributes, which the
+    /// `exr` crate leaves to a hash map; what a library adds on its own), so
+    /// the same image has the same hash written by either back end.
+    pub fn content_hash(&self) -> u64 {
+        let mut h = Fnv::default();
+        h.write(&self.width.to_le_bytes());
+        h.write(&self.height.to_le_bytes());
+        let mut channels: Vec<&(String, Plane)> = self.channels.iter().collect();
+        channels.sort_by(|a, b| a.0.cmp(&b.0));
+        for (name, plane) in channels {
+            h.write(name.as_bytes());
+            match plane {
+                Plane::F32(v) => {
+                    h.write(b"f");
+                    v.iter().for_each(|x| h.write(&x.to_le_bytes()));
+                }
+                Plane::U32(v) => {
+                    h.write(b"u");
+                    v.iter().for_each(|x| h.write(&x.to_le_bytes()));
+                }
+            }
+        }
+        let mut attributes: Vec<&(String, Attr)> = self
+            .attributes
+            .iter()
+            .filter(|(n, _)| n.starts_with("rangewalk:"))
+            .collect();
+        attributes.sort_by(|a, b| a.0.cmp(&b.0));
+        for (name, attr) in attributes {
+            h.write(name.as_bytes());
+            match attr {
+                Attr::Float(x) => h.write(&x.to_le_bytes()),
+                Attr::Vector(v) => v.iter().for_each(|x| h.write(&x.to_le_bytes())),
+                Attr::Text(t) => h.write(t.as_bytes()),
+            }
+        }
+        h.finish()
     }
 
     /// The named channel, checked to hold one sample per pixel.

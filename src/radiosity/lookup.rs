@@ -28,14 +28,16 @@
 //!
 //! Lookups are what the multipass renderer does at every diffuse hit, so
 //! they must cost less than the shadow ray traced there. Each side of each
-//! object has a uniform grid over its records' ranges; a cell lists, in
-//! record order, every record whose range (the ball of radius `A R_i`
-//! and the slab within `R_i / 2` of its tangent plane) reaches into the
-//! cell. A lookup reads one cell's list from contiguous arrays, without
-//! searching or allocating, and sums in record order, so the result is
-//! the same as weighting every record of the side, bit for bit.
+//! object has a uniform grid over its records' ranges; a cell holds, in
+//! record order, a copy of every record whose range (the ball of radius
+//! `A R_i` and the slab within `R_i / 2` of its tangent plane) reaches
+//! into the cell, four records to a block, field by field. A lookup finds
+//! its cell by arithmetic and weighs four records at a time, without
+//! searching, branching per record or allocating; the weighted terms are
+//! summed in record order, so the result is the same as weighing every
+//! record of the side, bit for bit.
 
-use glam::Vec3;
+use glam::{BVec4A, Vec3, Vec4};
 
 use super::{record_sides, Simplified};
 
@@ -47,10 +49,11 @@ const MIN_COS: f32 = 0.866;
 /// the rounding of the distance and error computed at lookup, so that no
 /// record whose `e_i < A` at a point is missing from that point's cell.
 const REACH_MARGIN: f32 = 1e-3;
-/// A grid's cells and candidate entries per record: beyond them the cells
-/// are coarsened (doubled) rather than memory spent.
+/// A grid's cells and blocks per record (a block is 304 bytes): beyond
+/// them the cells are coarsened (doubled) rather than memory spent. Half
+/// the Cornell box's grids at q = 0.6 need 33 to 39 blocks per record.
 const CELLS_PER_RECORD: f64 = 64.0;
-const ENTRIES_PER_RECORD: f64 = 128.0;
+const BLOCKS_PER_RECORD: f64 = 40.0;
 
 /// The records of one time, searchable per object and side in object space.
 pub struct IrradianceCache {
@@ -58,10 +61,10 @@ pub struct IrradianceCache {
     /// Per object, the front side's grid and the back's. A side's lookup
     /// never meets the other side's records, which sit at the same points.
     grids: Vec<[Grid; 2]>,
-    /// Where each cell's candidates start in `candidates` (each grid's
-    /// cells followed by one closing offset).
+    /// Where each cell's blocks start in `blocks` (each grid's cells
+    /// followed by one closing offset).
     cells: Vec<usize>,
-    candidates: Vec<u32>,
+    blocks: Vec<Block>,
     /// Every usable record of each grid's side, in record order: what the
     /// fallback searches where no record is in range.
     members: Vec<u32>,
@@ -75,6 +78,38 @@ struct Entry {
     /// `d E_c / d p` for each colour channel `c`, in the tangent plane.
     gradient: [Vec3; 3],
     radius: f32,
+}
+
+/// Four records, field by field, for weighing them at once; unused lanes
+/// have a zero normal, which no query faces.
+#[derive(Clone, Copy)]
+struct Block {
+    position: [Vec4; 3],
+    normal: [Vec4; 3],
+    radius: Vec4,
+    value: [Vec4; 3],
+    /// `gradient[c][k]`: `d E_c / d x_k`.
+    gradient: [[Vec4; 3]; 3],
+}
+
+impl Block {
+    /// The records `ids` (at most four) of `records`.
+    fn new(records: &[Entry], ids: &[u32]) -> Self {
+        let lane = |f: &dyn Fn(&Entry) -> f32| {
+            let mut a = [0.0; 4];
+            for (a, &i) in a.iter_mut().zip(ids) {
+                *a = f(&records[i as usize]);
+            }
+            Vec4::from_array(a)
+        };
+        Self {
+            position: [0, 1, 2].map(|k| lane(&|r| r.position[k])),
+            normal: [0, 1, 2].map(|k| lane(&|r| r.normal[k])),
+            radius: lane(&|r| r.radius),
+            value: [0, 1, 2].map(|c| lane(&|r| r.value[c])),
+            gradient: [0, 1, 2].map(|c| [0, 1, 2].map(|k| lane(&|r| r.gradient[c][k]))),
+        }
+    }
 }
 
 /// A uniform grid over the records of one side of one object.
@@ -91,11 +126,12 @@ struct Grid {
 }
 
 impl Grid {
-    /// Cell coordinate of `x` along `axis`, unclamped. The build assigns
-    /// records to cells through this same function, so a point inside a
-    /// record's reach rounds into a cell the record was given.
+    /// Position of `x` along `axis` in cells, whose integer part (where
+    /// not negative) is the cell. The build assigns records to cells
+    /// through this same function, which only grows with `x`, so a point
+    /// inside a record's reach lands in a cell the record was given.
     fn coord(&self, x: f32, axis: usize) -> f32 {
-        ((x - self.lo[axis]) * self.scale).floor()
+        (x - self.lo[axis]) * self.scale
     }
 
     /// Index of the cell holding `p`, if any.
@@ -107,7 +143,7 @@ impl Grid {
             if !(c >= 0.0 && c < self.dims[axis] as f32) {
                 return None;
             }
-            index = index * self.dims[axis] + c as usize;
+            index = index * self.dims[axis] + (c as usize).min(self.dims[axis] - 1);
         }
         Some(index)
     }
@@ -225,7 +261,7 @@ impl IrradianceCache {
             records,
             grids: Vec::new(),
             cells: Vec::new(),
-            candidates: Vec::new(),
+            blocks: Vec::new(),
             members: Vec::new(),
             average,
         };
@@ -249,73 +285,11 @@ impl IrradianceCache {
         if members.is_empty() || !p.is_finite() || n == Vec3::ZERO || !n.is_finite() {
             return self.average;
         }
-        let candidates = grid.cell(p).map_or(&[][..], |c| {
+        let blocks = grid.cell(p).map_or(&[][..], |c| {
             let c = grid.first_cell + c;
-            &self.candidates[self.cells[c]..self.cells[c + 1]]
+            &self.blocks[self.cells[c]..self.cells[c + 1]]
         });
-        self.blend(candidates, p, n)
-            .unwrap_or_else(|| self.nearest(members, p, n))
-    }
-
-    /// Ward's weighted average over the records of `ids` in range of
-    /// `(p, n)`, in the order given; `None` where none is.
-    fn blend(&self, ids: &[u32], p: Vec3, n: Vec3) -> Option<Vec3> {
-        let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
-        for &i in ids {
-            let i = i as usize;
-            let Some(e) = self.error(i, p, n) else {
-                continue;
-            };
-            if e >= ACCEPT {
-                continue;
-            }
-            let Some(v) = self.extrapolate(i, p) else {
-                continue;
-            };
-            if e <= 1e-6 {
-                return Some(v);
-            }
-            let w = 1.0 / e - 1.0 / ACCEPT;
-            sum += v * w;
-            wsum += w;
-        }
-        let v = sum / wsum;
-        (wsum > 0.0 && v.is_finite()).then_some(v)
-    }
-
-    /// Ward's error estimate of record `i` at `(p, n)`, or `None` where the
-    /// record must not be used (facing away, off the tangent plane).
-    fn error(&self, i: usize, p: Vec3, n: Vec3) -> Option<f32> {
-        let r = &self.records[i];
-        let cos = n.dot(r.normal);
-        if cos < MIN_COS {
-            return None;
-        }
-        let d = p - r.position;
-        let radius = r.radius.max(f32::MIN_POSITIVE);
-        if d.dot(r.normal).abs() > 0.5 * radius {
-            return None;
-        }
-        let e = d.length() / radius + (1.0 - cos).max(0.0).sqrt();
-        e.is_finite().then_some(e)
-    }
-
-    /// Record `i`'s value carried to `p` by its gradient; `None` where
-    /// that turns negative.
-    fn extrapolate(&self, i: usize, p: Vec3) -> Option<Vec3> {
-        let r = &self.records[i];
-        let d = p - r.position;
-        let g = Vec3::new(
-            r.gradient[0].dot(d),
-            r.gradient[1].dot(d),
-            r.gradient[2].dot(d),
-        );
-        let v = r.value + g;
-        if !v.is_finite() {
-            Some(r.value)
-        } else {
-            (v.min_element() >= 0.0).then_some(v)
-        }
+        blend(blocks, p, n).unwrap_or_else(|| self.nearest(members, p, n))
     }
 
     /// Error estimate of record `i` for the fallback: any record facing
@@ -380,7 +354,7 @@ impl IrradianceCache {
     }
 
     /// Builds the grid over `members` (usable records of one side, in
-    /// record order), appending its cells and candidates.
+    /// record order), appending its cells and blocks.
     fn add_grid(&mut self, members: &[u32]) -> Grid {
         let first_member = self.members.len();
         self.members.extend_from_slice(members);
@@ -399,7 +373,7 @@ impl IrradianceCache {
         let extent = hi - lo;
         if members.is_empty() || !extent.is_finite() {
             // No cells: every lookup falls back to the members.
-            self.cells.push(self.candidates.len());
+            self.cells.push(self.blocks.len());
             return grid;
         }
         let mut radii: Vec<f32> = members
@@ -407,16 +381,19 @@ impl IrradianceCache {
             .map(|&i| self.records[i as usize].radius)
             .collect();
         radii.sort_by(f32::total_cmp);
-        // Cells of half the typical record radius: a cell's candidates are
-        // then not many more than the records in range at any of its points.
+        // Cells of half the typical record radius: a cell then holds about
+        // twice the records in range at any of its points. Finer cells hold
+        // fewer, but their copies no longer stay in cache (a quarter of the
+        // radius is slower on the Cornell box).
         let mut size = 0.5 * radii[radii.len() / 2];
         let m = members.len() as f64;
         grid.lo = lo;
-        loop {
+        let lists = loop {
             grid.scale = 1.0 / size;
             grid.dims = [0, 1, 2].map(|a| ((extent[a] / size).ceil() as usize).max(1));
             let cells: f64 = grid.dims.iter().map(|&d| d as f64).product();
-            let entries: f64 = members
+            // The boxes overlapped bound the records copied from above.
+            let boxes: f64 = members
                 .iter()
                 .map(|&i| {
                     let r = &self.records[i as usize];
@@ -424,46 +401,106 @@ impl IrradianceCache {
                     (0..3).map(|k| (b[k] - a[k] + 1) as f64).product::<f64>()
                 })
                 .sum();
-            if (cells <= CELLS_PER_RECORD * m && entries <= ENTRIES_PER_RECORD * m)
-                || !size.is_finite()
-            {
-                break;
+            let coarser = size * 2.0;
+            if !coarser.is_finite() {
+                break self.lists(&grid, members, lo, hi);
             }
-            size *= 2.0;
+            if cells > CELLS_PER_RECORD * m || boxes > 16.0 * BLOCKS_PER_RECORD * m {
+                size = coarser;
+                continue;
+            }
+            let lists = self.lists(&grid, members, lo, hi);
+            let blocks: usize = lists.iter().map(|l| l.len().div_ceil(4)).sum();
+            if blocks as f64 <= BLOCKS_PER_RECORD * m {
+                break lists;
+            }
+            size = coarser;
+        };
+        for list in &lists {
+            self.cells.push(self.blocks.len());
+            self.blocks
+                .extend(list.chunks(4).map(|ids| Block::new(&self.records, ids)));
         }
+        self.cells.push(self.blocks.len());
+        grid
+    }
 
-        // Count, then fill: records in order, so every list is in order.
+    /// Each cell's records, in record order.
+    fn lists(&self, grid: &Grid, members: &[u32], lo: Vec3, hi: Vec3) -> Vec<Vec<u32>> {
         // Cell boxes are widened for the rounding of `Grid::cell` at the
         // magnitude of the grid's coordinates.
         let size = 1.0 / grid.scale;
         let pad = size * REACH_MARGIN + lo.abs().max(hi.abs()).max_element() * 1e-6;
-        let cells = grid.dims.iter().product::<usize>();
-        let mut count = vec![0usize; cells + 1];
+        let reach = |r: &Entry| ACCEPT * r.radius * (1.0 + REACH_MARGIN);
+        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); grid.dims.iter().product()];
         let mut hits = Vec::new();
         for &i in members {
             let r = &self.records[i as usize];
             grid.reached_cells(r, reach(r), pad, &mut hits);
             for &c in &hits {
-                count[c + 1] += 1;
+                lists[c].push(i);
             }
         }
-        let base = self.candidates.len();
-        for c in 0..cells {
-            count[c + 1] += count[c];
-        }
-        self.cells.extend(count.iter().map(|&c| base + c));
-        self.candidates.resize(base + count[cells], 0);
-        let mut next: Vec<usize> = count[..cells].iter().map(|&c| base + c).collect();
-        for &i in members {
-            let r = &self.records[i as usize];
-            grid.reached_cells(r, reach(r), pad, &mut hits);
-            for &c in &hits {
-                self.candidates[next[c]] = i;
-                next[c] += 1;
-            }
-        }
-        grid
+        lists
     }
+}
+
+/// Ward's weighted average over the records of `blocks` in range of
+/// `(p, n)`, summed in order; `None` where none is. The four records of a
+/// block are weighed at once, without a branch per record; each lane's
+/// arithmetic is the same whatever the arrangement of records into blocks.
+fn blend(blocks: &[Block], p: Vec3, n: Vec3) -> Option<Vec3> {
+    let [px, py, pz] = p.to_array().map(Vec4::splat);
+    let [nx, ny, nz] = n.to_array().map(Vec4::splat);
+    let mut sum = Vec4::ZERO;
+    for b in blocks {
+        let cos = nx * b.normal[0] + ny * b.normal[1] + nz * b.normal[2];
+        let d = [px - b.position[0], py - b.position[1], pz - b.position[2]];
+        let radius = b.radius.max(Vec4::splat(f32::MIN_POSITIVE));
+        // Distance off the record's tangent plane.
+        let off = (d[0] * b.normal[0] + d[1] * b.normal[1] + d[2] * b.normal[2]).abs();
+        let length = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        let e = length / radius + sqrt((Vec4::ONE - cos).max(Vec4::ZERO));
+        // The value carried by the gradient, or as recorded where that
+        // overflows; a negative one is left out.
+        let near = cos.cmpge(Vec4::splat(MIN_COS))
+            & off.cmple(radius * 0.5)
+            // Also false for a NaN or infinite `e`.
+            & e.cmplt(Vec4::splat(ACCEPT));
+        if !near.any() {
+            continue;
+        }
+        let v = [0, 1, 2].map(|c| {
+            let g = b.gradient[c];
+            let v = b.value[c] + (g[0] * d[0] + g[1] * d[1] + g[2] * d[2]);
+            Vec4::select(v.abs().cmplt(Vec4::INFINITY), v, b.value[c])
+        });
+        let used: BVec4A = near & v[0].min(v[1]).min(v[2]).cmpge(Vec4::ZERO);
+        let exact = used & e.cmple(Vec4::splat(1e-6));
+        if exact.any() {
+            let lane = exact.bitmask().trailing_zeros() as usize;
+            return Some(Vec3::new(v[0][lane], v[1][lane], v[2][lane]));
+        }
+        let w = Vec4::select(used, Vec4::ONE / e - Vec4::splat(1.0 / ACCEPT), Vec4::ZERO);
+        // One lane after the other, so that the sum does not depend on
+        // which lane a record sits in.
+        let terms = [v[0] * w, v[1] * w, v[2] * w, w];
+        for lane in 0..4 {
+            sum += Vec4::new(
+                terms[0][lane],
+                terms[1][lane],
+                terms[2][lane],
+                terms[3][lane],
+            );
+        }
+    }
+    let v = sum.truncate() / sum.w;
+    (sum.w > 0.0 && v.is_finite()).then_some(v)
+}
+
+/// Square roots of four lanes, in a form the compiler vectorizes.
+fn sqrt(x: Vec4) -> Vec4 {
+    Vec4::from_array(x.to_array().map(f32::sqrt))
 }
 
 /// Least-squares gradient of record `i`'s value over its neighbours on
@@ -626,13 +663,15 @@ mod tests {
     }
 
     /// Ward's weighting over every record of the object's side, in record
-    /// order, then the fallback: what the grid must reproduce bit for bit.
+    /// order (four to a block as they come), then the fallback: what the
+    /// grid must reproduce bit for bit.
     fn brute_force(c: &IrradianceCache, ids: &[u32], p: Vec3, n: Vec3) -> (Vec3, bool) {
         let n = n.normalize_or_zero();
         if ids.is_empty() {
             return (c.average(), false);
         }
-        match c.blend(ids, p, n) {
+        let blocks: Vec<Block> = ids.chunks(4).map(|b| Block::new(&c.records, b)).collect();
+        match blend(&blocks, p, n) {
             Some(v) => (v, true),
             None => (c.nearest(ids, p, n), false),
         }

@@ -95,19 +95,26 @@ struct Block {
 impl Block {
     /// The records `ids` (at most four) of `records`.
     fn new(records: &[Entry], ids: &[u32]) -> Self {
-        let lane = |f: &dyn Fn(&Entry) -> f32| {
-            let mut a = [0.0; 4];
-            for (a, &i) in a.iter_mut().zip(ids) {
-                *a = f(&records[i as usize]);
+        let mut lanes = [[0.0f32; 4]; 19];
+        for (l, &i) in ids.iter().enumerate() {
+            let r = &records[i as usize];
+            let [g0, g1, g2] = r.gradient;
+            let fields = [r.position, r.normal, r.value, g0, g1, g2]
+                .into_iter()
+                .flat_map(|v| v.to_array())
+                .chain([r.radius]);
+            for (lane, x) in lanes.iter_mut().zip(fields) {
+                lane[l] = x;
             }
-            Vec4::from_array(a)
-        };
+        }
+        let v = |k: usize| Vec4::from_array(lanes[k]);
+        let v3 = |k: usize| [v(k), v(k + 1), v(k + 2)];
         Self {
-            position: [0, 1, 2].map(|k| lane(&|r| r.position[k])),
-            normal: [0, 1, 2].map(|k| lane(&|r| r.normal[k])),
-            radius: lane(&|r| r.radius),
-            value: [0, 1, 2].map(|c| lane(&|r| r.value[c])),
-            gradient: [0, 1, 2].map(|c| [0, 1, 2].map(|k| lane(&|r| r.gradient[c][k]))),
+            position: v3(0),
+            normal: v3(3),
+            value: v3(6),
+            gradient: [v3(9), v3(12), v3(15)],
+            radius: v(18),
         }
     }
 }
@@ -484,14 +491,9 @@ fn blend(blocks: &[Block], p: Vec3, n: Vec3) -> Option<Vec3> {
         let w = Vec4::select(used, Vec4::ONE / e - Vec4::splat(1.0 / ACCEPT), Vec4::ZERO);
         // One lane after the other, so that the sum does not depend on
         // which lane a record sits in.
-        let terms = [v[0] * w, v[1] * w, v[2] * w, w];
-        for lane in 0..4 {
-            sum += Vec4::new(
-                terms[0][lane],
-                terms[1][lane],
-                terms[2][lane],
-                terms[3][lane],
-            );
+        let [r, g, b, w] = [v[0] * w, v[1] * w, v[2] * w, w].map(|x| x.to_array());
+        for (((r, g), b), w) in r.into_iter().zip(g).zip(b).zip(w) {
+            sum += Vec4::new(r, g, b, w);
         }
     }
     let v = sum.truncate() / sum.w;

@@ -50,10 +50,11 @@ const MIN_COS: f32 = 0.866;
 /// record whose `e_i < A` at a point is missing from that point's cell.
 const REACH_MARGIN: f32 = 1e-3;
 /// A grid's cells and blocks per record (a block is 304 bytes): beyond
-/// them the cells are coarsened (doubled) rather than memory spent. Half
-/// the Cornell box's grids at q = 0.6 need 33 to 39 blocks per record.
-const CELLS_PER_RECORD: f64 = 64.0;
-const BLOCKS_PER_RECORD: f64 = 40.0;
+/// them the cells are coarsened (by √2) rather than memory spent. The
+/// Cornell box's large faces at q = 0.6 would need 73–94 blocks per record
+/// at the finest size, 33–40 at the next.
+const CELLS_PER_RECORD: f64 = 256.0;
+const BLOCKS_PER_RECORD: f64 = 48.0;
 
 /// The records of one time, searchable per object and side in object space.
 pub struct IrradianceCache {
@@ -86,7 +87,8 @@ struct Entry {
 struct Block {
     position: [Vec4; 3],
     normal: [Vec4; 3],
-    radius: Vec4,
+    /// `1 / R_i`: a multiplication is cheaper than a division.
+    inv_radius: Vec4,
     value: [Vec4; 3],
     /// `gradient[c][k]`: `d E_c / d x_k`.
     gradient: [[Vec4; 3]; 3],
@@ -102,7 +104,7 @@ impl Block {
             let fields = [r.position, r.normal, r.value, g0, g1, g2]
                 .into_iter()
                 .flat_map(|v| v.to_array())
-                .chain([r.radius]);
+                .chain([1.0 / r.radius.max(f32::MIN_POSITIVE)]);
             for (lane, x) in lanes.iter_mut().zip(fields) {
                 lane[l] = x;
             }
@@ -114,7 +116,7 @@ impl Block {
             normal: v3(3),
             value: v3(6),
             gradient: [v3(9), v3(12), v3(15)],
-            radius: v(18),
+            inv_radius: v(18),
         }
     }
 }
@@ -388,11 +390,12 @@ impl IrradianceCache {
             .map(|&i| self.records[i as usize].radius)
             .collect();
         radii.sort_by(f32::total_cmp);
-        // Cells of half the typical record radius: a cell then holds about
-        // twice the records in range at any of its points. Finer cells hold
-        // fewer, but their copies no longer stay in cache (a quarter of the
-        // radius is slower on the Cornell box).
-        let mut size = 0.5 * radii[radii.len() / 2];
+        // Cells of about a third of the typical record radius where memory
+        // allows: a cell then holds not many more records than are in range
+        // at any of its points. Finer cells hold fewer, but their copies no
+        // longer stay in cache (a quarter of the radius is slower on the
+        // Cornell box); half the radius is about a quarter slower.
+        let mut size = 0.35 * radii[radii.len() / 2];
         let m = members.len() as f64;
         grid.lo = lo;
         let lists = loop {
@@ -408,7 +411,7 @@ impl IrradianceCache {
                     (0..3).map(|k| (b[k] - a[k] + 1) as f64).product::<f64>()
                 })
                 .sum();
-            let coarser = size * 2.0;
+            let coarser = size * std::f32::consts::SQRT_2;
             if !coarser.is_finite() {
                 break self.lists(&grid, members, lo, hi);
             }
@@ -463,20 +466,16 @@ fn blend(blocks: &[Block], p: Vec3, n: Vec3) -> Option<Vec3> {
     for b in blocks {
         let cos = nx * b.normal[0] + ny * b.normal[1] + nz * b.normal[2];
         let d = [px - b.position[0], py - b.position[1], pz - b.position[2]];
-        let radius = b.radius.max(Vec4::splat(f32::MIN_POSITIVE));
         // Distance off the record's tangent plane.
         let off = (d[0] * b.normal[0] + d[1] * b.normal[1] + d[2] * b.normal[2]).abs();
         let length = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-        let e = length / radius + sqrt((Vec4::ONE - cos).max(Vec4::ZERO));
+        let e = length * b.inv_radius + sqrt((Vec4::ONE - cos).max(Vec4::ZERO));
         // The value carried by the gradient, or as recorded where that
         // overflows; a negative one is left out.
         let near = cos.cmpge(Vec4::splat(MIN_COS))
-            & off.cmple(radius * 0.5)
+            & (off * b.inv_radius).cmple(Vec4::splat(0.5))
             // Also false for a NaN or infinite `e`.
             & e.cmplt(Vec4::splat(ACCEPT));
-        if !near.any() {
-            continue;
-        }
         let v = [0, 1, 2].map(|c| {
             let g = b.gradient[c];
             let v = b.value[c] + (g[0] * d[0] + g[1] * d[1] + g[2] * d[2]);

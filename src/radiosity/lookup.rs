@@ -20,14 +20,16 @@
 //! reproduced exactly; a record whose extrapolation turns negative (a
 //! gradient fitted across a shadow edge) is left out, as Radiance does.
 //!
-//! Where no record is in range, the nearest records facing the same way
-//! are blended by `1/e_i`; an object without records (pruned by the
-//! simplification) or a point facing away from all of them gets the
-//! area-weighted average over the lit records, as Radiance's `-av` ambient
-//! value stands in for a missing cache.
+//! Where no record is in range, the range is widened until the record of
+//! smallest `e_i` facing the same hemisphere enters it (the same weights
+//! with every `e_i` divided by the smallest); an object without records
+//! (pruned by the simplification) or a point facing away from all of them
+//! gets the area-weighted average over the lit records, as Radiance's
+//! `-av` ambient value stands in for a missing cache.
 //!
-//! Lookups are what the multipass renderer does at every diffuse hit, so
-//! they must cost less than the shadow ray traced there. Each side of each
+//! Lookups are what the multipass renderer does at every diffuse hit in
+//! place of a traced bounce, so they should cost about what the shadow ray
+//! traced there costs. Each side of each
 //! object has a uniform grid over its records' ranges; a cell holds, in
 //! record order, a copy of every record whose range (the ball of radius
 //! `A R_i` and the slab within `R_i / 2` of its tangent plane) reaches

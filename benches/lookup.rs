@@ -1,0 +1,134 @@
+//! An irradiance lookup against the shadow ray the multipass renderer
+//! traces at the same point: the lookup replaces a traced diffuse bounce,
+//! so it pays only if it costs less than a ray. Both run single-threaded
+//! over the same points, the first hits of the Cornell box's 256 x 256
+//! pixel-centre camera rays at t = 0.5 (emitters left out), with the
+//! records of a q = 0.6 simplification solved at that time; the shadow
+//! rays go to fixed random points on the light. Embree where the build has
+//! it.
+
+use std::hint::black_box;
+use std::path::PathBuf;
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use glam::Vec3;
+use rangewalk::accel::{self, offset_origin, Backend, Ray};
+use rangewalk::radiosity::lookup::IrradianceCache;
+use rangewalk::radiosity::{simplify, solve, Quality};
+use rangewalk::scene::Scene;
+
+const SIZE: u32 = 256;
+const TIME: f32 = 0.5;
+
+/// SplitMix64: fixed-seed light points without another dependency.
+struct Rng(u64);
+
+impl Rng {
+    fn f32(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+/// A lookup as the multipass renderer makes it: object, side, and the
+/// object-space point and normal.
+struct Query {
+    object: u32,
+    front: bool,
+    point: Vec3,
+    normal: Vec3,
+}
+
+fn lookup(c: &mut Criterion) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml");
+    let scene = Scene::load(&path).expect("loading the Cornell box");
+    let camera = scene
+        .camera("main")
+        .and_then(|d| d.perspective(SIZE, SIZE))
+        .expect("Cornell box camera");
+    let backend = Backend::default_available();
+    let poses = scene.at(TIME);
+    let mut engine = accel::build(backend, &scene.geometry(), &poses).expect("ray engine");
+    let quality = Quality::new(0.6).unwrap();
+    let simplified = simplify(&scene, engine.as_mut(), quality).expect("simplification");
+    engine.set_transforms(&poses).expect("posing the scene");
+    let solution = solve(&scene, &simplified, engine.as_ref(), TIME, quality).expect("solve");
+    let cache = IrradianceCache::new(&simplified, &solution.indirect);
+
+    // World-space triangles of the emitters, to aim shadow rays at.
+    let mut light = Vec::new();
+    for (o, object) in scene.objects.iter().enumerate() {
+        if scene.materials[object.material].emission.is_some() {
+            for t in &object.mesh.triangles {
+                light.push(t.map(|v| poses[o].transform_point3(object.mesh.positions[v as usize])));
+            }
+        }
+    }
+    assert!(!light.is_empty(), "the Cornell box has an area light");
+
+    let mut rng = Rng(1);
+    let (mut queries, mut shadows) = (Vec::new(), Vec::new());
+    for y in 0..SIZE {
+        for x in 0..SIZE {
+            let Some(ray) = camera.ray(x as f32 + 0.5, y as f32 + 0.5) else {
+                continue;
+            };
+            let Some(hit) = engine.intersect(&ray) else {
+                continue;
+            };
+            let object = &scene.objects[hit.object as usize];
+            if scene.materials[object.material].emission.is_some() {
+                continue;
+            }
+            let [a, b, c] = object.mesh.triangles[hit.primitive as usize]
+                .map(|v| object.mesh.positions[v as usize]);
+            let local = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+            let p = poses[hit.object as usize].transform_point3(local);
+            let front = hit.normal.dot(ray.dir) < 0.0;
+            let normal = (b - a).cross(c - a).normalize_or_zero();
+            queries.push(Query {
+                object: hit.object,
+                front,
+                point: local,
+                normal: if front { normal } else { -normal },
+            });
+            let [la, lb, lc] = light[(rng.f32() * light.len() as f32) as usize % light.len()];
+            let (u, v) = (rng.f32(), rng.f32());
+            let (u, v) = if u + v > 1.0 {
+                (1.0 - u, 1.0 - v)
+            } else {
+                (u, v)
+            };
+            let q = la + (lb - la) * u + (lc - la) * v;
+            let wi = (q - p).normalize();
+            let origin = offset_origin(p, hit.normal, wi);
+            let end = offset_origin(q, (lb - la).cross(lc - la).normalize(), -wi);
+            shadows.push(Ray::segment(origin, end - origin, 1.0));
+        }
+    }
+
+    let mut group = c.benchmark_group("lookup");
+    group.throughput(Throughput::Elements(queries.len() as u64));
+    group.bench_function(BenchmarkId::new("irradiance", backend), |b| {
+        b.iter(|| {
+            queries.iter().fold(Vec3::ZERO, |s, q| {
+                s + cache.irradiance(q.object, q.front, black_box(q.point), q.normal)
+            })
+        })
+    });
+    group.bench_function(BenchmarkId::new("occluded", backend), |b| {
+        b.iter(|| {
+            shadows
+                .iter()
+                .filter(|r| engine.occluded(black_box(r)))
+                .count()
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, lookup);
+criterion_main!(benches);

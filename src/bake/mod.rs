@@ -255,10 +255,13 @@ pub fn run(
         .filter(|&k| shard.owns(k))
         .collect();
     let mut todo = Vec::new();
+    // Images this run has read back or written itself need no second look.
+    let mut checked = vec![false; manifest.images.len()];
     for &k in &mine {
         let e = &manifest.images[k];
         if manifest::verify(&dir.join(&e.file), e.fnv1a64.as_deref()) {
             summary.reused += 1;
+            checked[k] = true;
         } else {
             todo.push(k);
         }
@@ -296,6 +299,7 @@ pub fn run(
             )
             .with_context(|| format!("baking {}", e.file))?;
             summary.rendered += 1;
+            checked[k] = true;
             summary.samples += stats.samples;
             summary.rays += stats.rays;
         }
@@ -322,8 +326,9 @@ pub fn run(
             .images
             .iter()
             .zip(&recorded)
-            .filter(|(e, sum)| !manifest::verify(&dir.join(&e.file), sum.as_deref()))
-            .map(|(e, _)| e.file.as_str())
+            .zip(&checked)
+            .filter(|((e, sum), &ok)| !ok && !manifest::verify(&dir.join(&e.file), sum.as_deref()))
+            .map(|((e, _), _)| e.file.as_str())
             .collect();
         if damaged.is_empty() {
             for (e, sum) in manifest.images.iter_mut().zip(recorded) {

@@ -7,6 +7,9 @@
 //! rays go to fixed random points on the light. Embree where the build has
 //! it.
 
+mod common;
+use common::Rng;
+
 use std::hint::black_box;
 use std::path::PathBuf;
 
@@ -19,19 +22,6 @@ use rangewalk::scene::Scene;
 
 const SIZE: u32 = 256;
 const TIME: f32 = 0.5;
-
-/// SplitMix64: fixed-seed light points without another dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn f32(&mut self) -> f32 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
 
 /// A lookup as the multipass renderer makes it: object, side, and the
 /// object-space point and normal.

@@ -6,6 +6,9 @@
 //! All rays are generated once, with a fixed seed, outside the timed loops;
 //! every backend traces the same rays.
 
+mod common;
+use common::Rng;
+
 use std::f32::consts::{PI, TAU};
 use std::time::Duration;
 
@@ -19,19 +22,6 @@ use rangewalk::scene::Scene;
 const WIDTH: u32 = 256;
 const HEIGHT: u32 = 256;
 const RAYS: usize = (WIDTH * HEIGHT) as usize;
-
-/// SplitMix64: fixed-seed inputs without another dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn f32(&mut self) -> f32 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
 
 /// A `(rows + 1) x (cols + 1)` vertex grid, two triangles per cell, with
 /// positions from `f(row / rows, col / cols)`.

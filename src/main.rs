@@ -195,6 +195,12 @@ impl ViewArgs {
     }
 }
 
+/// A ray engine over the scene posed at the animation's start.
+fn engine_at_start(s: &Scene, backend: Backend) -> Result<Box<dyn InstancedEngine>> {
+    accel::build(backend, &s.geometry(), &s.at(s.animation.start))
+        .with_context(|| format!("building the {backend} ray engine"))
+}
+
 fn load(path: &PathBuf) -> Result<Scene> {
     let scene = Scene::load(path)?;
     if scene.dropped_triangles > 0 {
@@ -312,8 +318,7 @@ fn run(cli: Cli) -> Result<()> {
         } => {
             let q = Quality::new(quality).context("--quality")?;
             let s = load(&scene)?;
-            let mut engine = accel::build(backend, &s.geometry(), &s.at(s.animation.start))
-                .with_context(|| format!("building the {backend} ray engine"))?;
+            let mut engine = engine_at_start(&s, backend)?;
             let (simplified, series) = solve_indirect(&s, engine.as_mut(), q)?;
             radiosity_bake::save_with(&out, &scene, &simplified, &series)?;
             report_radiosity(&s, &simplified, &series);
@@ -615,8 +620,7 @@ fn plan(args: PlanArgs) -> Result<()> {
     if let Some(space) = args.view_segment {
         s.view_space = Some(space);
     }
-    let mut engine = accel::build(args.backend, &s.geometry(), &s.at(s.animation.start))
-        .with_context(|| format!("building the {} ray engine", args.backend))?;
+    let mut engine = engine_at_start(&s, args.backend)?;
     let options = PlanOptions {
         quality,
         resolution: args.resolution,
@@ -789,8 +793,7 @@ fn bake_command(args: BakeArgs) -> Result<()> {
         backend: args.backend,
         max_depth: args.max_depth,
     };
-    let mut engine = accel::build(args.backend, &s.geometry(), &s.at(s.animation.start))
-        .with_context(|| format!("building the {} ray engine", args.backend))?;
+    let mut engine = engine_at_start(&s, args.backend)?;
     let options = PlanOptions {
         quality,
         resolution: args.resolution,

@@ -596,24 +596,8 @@ fn side_members(simplified: &Simplified, records: &[Entry]) -> Vec<[Vec<u32>; 2]
 mod tests {
     use super::*;
     use crate::radiosity::formfactor::subdivide;
+    use crate::render::rng::Pcg32;
     use crate::scene::Scene;
-
-    /// SplitMix64: fixed-seed test points.
-    struct Rng(u64);
-
-    impl Rng {
-        fn f32(&mut self) -> f32 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-        }
-
-        fn vec3(&mut self) -> Vec3 {
-            Vec3::new(self.f32(), self.f32(), self.f32())
-        }
-    }
 
     /// The Cornell box cut unevenly (each triangle 4-way zero to three
     /// times, T-junctions and all), scaled by `scale` and moved by
@@ -681,8 +665,12 @@ mod tests {
     }
 
     /// A unit vector within about `angle` radians of `n`.
-    fn tilt(n: Vec3, angle: f32, rng: &mut Rng) -> Vec3 {
-        let r = rng.vec3() * 2.0 - 1.0;
+    fn vec3(rng: &mut Pcg32) -> Vec3 {
+        Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32())
+    }
+
+    fn tilt(n: Vec3, angle: f32, rng: &mut Pcg32) -> Vec3 {
+        let r = vec3(rng) * 2.0 - 1.0;
         (n + r * angle.tan()).normalize()
     }
 
@@ -694,7 +682,7 @@ mod tests {
             (1e4, Vec3::new(-2e4, 5e3, 0.0)),
         ] {
             let (_, s) = uneven_box(scale, offset);
-            let mut rng = Rng(7);
+            let mut rng = Pcg32::for_sample(7, 0, 0);
             let values: Vec<Vec3> = s
                 .records
                 .iter()
@@ -703,10 +691,10 @@ mod tests {
                     let smooth = Vec3::new(1.0 + q.x, 2.0 - q.y, 1.5 + q.z * q.x);
                     // Some records unlit, the rest noisy, so that gradients
                     // cross zero and some extrapolations turn negative.
-                    if rng.f32() < 0.1 {
+                    if rng.next_f32() < 0.1 {
                         Vec3::ZERO
                     } else {
-                        smooth.abs() * (0.5 + rng.f32())
+                        smooth.abs() * (0.5 + rng.next_f32())
                     }
                 })
                 .collect();
@@ -720,7 +708,7 @@ mod tests {
                     for k in 0..400 {
                         let patch = patches[k % patches.len()];
                         let [a, b, c] = patch.vertices;
-                        let (u, v) = (rng.f32(), rng.f32());
+                        let (u, v) = (rng.next_f32(), rng.next_f32());
                         let (u, v) = if u + v > 1.0 {
                             (1.0 - u, 1.0 - v)
                         } else {
@@ -736,10 +724,10 @@ mod tests {
                         // 40°; every eighth point anywhere near the object
                         // with any normal.
                         let edge = (b - a).length();
-                        p += side_normal * edge * (rng.f32() - 0.5) * 0.8;
-                        let mut n = tilt(side_normal, 0.7 * rng.f32(), &mut rng);
+                        p += side_normal * edge * (rng.next_f32() - 0.5) * 0.8;
+                        let mut n = tilt(side_normal, 0.7 * rng.next_f32(), &mut rng);
                         if k % 8 == 7 {
-                            p += (rng.vec3() - 0.5) * 4.0 * edge;
+                            p += (vec3(&mut rng) - 0.5) * 4.0 * edge;
                             n = tilt(Vec3::Z, 1.5, &mut rng);
                         }
                         let got = cache.irradiance(object, front, p, n);

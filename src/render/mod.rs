@@ -23,7 +23,7 @@ pub mod bsdf;
 mod integrator;
 mod lights;
 pub mod multipass;
-mod rng;
+pub(crate) mod rng;
 
 use integrator::Integrator;
 use lights::Lights;

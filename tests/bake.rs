@@ -111,16 +111,22 @@ fn missing_and_damaged_images_are_rendered_again_and_nothing_else() {
     bake_into(&scene, &dir, &settings, Shard::ALL);
     let before = image_contents(&dir);
     let m = bake::Manifest::read(&dir).unwrap();
-    // One image gone, one with a flipped byte, one cut short.
+    // One image gone, one changed where it still reads (a letter of its
+    // header's provenance text: a damage no decoder notices), one cut short.
     std::fs::remove_file(dir.join(&m.images[0].file)).unwrap();
     let mut bytes = std::fs::read(dir.join(&m.images[1].file)).unwrap();
-    let mid = bytes.len() / 2;
-    bytes[mid] ^= 0x40;
+    let at = bytes
+        .windows(9)
+        .position(|w| w == b"multipass")
+        .expect("the header names the renderer");
+    bytes[at] = b'M';
     std::fs::write(dir.join(&m.images[1].file), &bytes).unwrap();
     let third = std::fs::read(dir.join(&m.images[2].file)).unwrap();
     std::fs::write(dir.join(&m.images[2].file), &third[..100]).unwrap();
     let opened = bake::Bake::open(&dir, &scene).unwrap();
-    let err = opened.read(1).expect_err("a damaged image is refused");
+    let Err(err) = opened.read(1) else {
+        panic!("a damaged image is read as if whole");
+    };
     assert!(format!("{err:#}").contains("damaged"), "{err:#}");
 
     let s = bake_into(&scene, &dir, &settings, Shard::ALL);
@@ -251,7 +257,9 @@ fn a_sphere_base_image_resampled_into_a_pinhole_view_agrees_with_a_pinhole_rende
     let pinhole = scene.camera("main").unwrap().perspective(n, n).unwrap();
     let vfov = scene.camera("main").unwrap().vfov_deg;
     // Twice as fine as the rule asks, at a quarter of the samples per pixel:
-    // each frame pixel then gathers about as many samples as the reference's.
+    // each frame pixel then gathers about as many samples as the reference's
+    // (256, so that the noise of the mean, ~0.3%, leaves the 1% bound on
+    // the bias room).
     let side = 2 * size::base_size(BaseProjection::Sphere, (n, n), vfov);
     let sphere = Camera::looking(
         pinhole.position,
@@ -273,15 +281,15 @@ fn a_sphere_base_image_resampled_into_a_pinhole_view_agrees_with_a_pinhole_rende
         e.as_ref(),
         &sphere,
         0.0,
-        &s(16, 1),
+        &s(64, 1),
         Indirect::Traced,
         Progress::Tiles,
     )
     .unwrap();
-    let reference = render::render(&scene, e.as_ref(), &pinhole, 0.0, &s(64, 2))
+    let reference = render::render(&scene, e.as_ref(), &pinhole, 0.0, &s(256, 2))
         .unwrap()
         .0;
-    let second = render::render(&scene, e.as_ref(), &pinhole, 0.0, &s(64, 3))
+    let second = render::render(&scene, e.as_ref(), &pinhole, 0.0, &s(256, 3))
         .unwrap()
         .0;
 
@@ -374,8 +382,9 @@ fn a_sphere_base_image_resampled_into_a_pinhole_view_agrees_with_a_pinhole_rende
     let edge_floor = (second_edge / ref_edge - 1.0).abs();
     let edge_err = (res_edge / ref_edge - 1.0).abs();
     println!(
-        "bias {:.3}%, block RMS {err:.4} (noise {floor:.4}), outline {:.2}% (noise {:.2}%)",
+        "bias {:.3}% (two references differ by {:.3}%), block RMS {err:.4} (noise {floor:.4}), outline {:.2}% (noise {:.2}%)",
         100.0 * bias,
+        100.0 * (mean(&second.radiance) / mean(&reference.radiance) - 1.0),
         100.0 * edge_err,
         100.0 * edge_floor
     );

@@ -319,7 +319,7 @@ fn run(cli: Cli) -> Result<()> {
             let q = Quality::new(quality).context("--quality")?;
             let s = load(&scene)?;
             let mut engine = engine_at_start(&s, backend)?;
-            let (simplified, series) = solve_indirect(&s, engine.as_mut(), q)?;
+            let (simplified, series) = radiosity::simplify_and_decompose(&s, engine.as_mut(), q)?;
             radiosity_bake::save_with(&out, &scene, &simplified, &series)?;
             report_radiosity(&s, &simplified, &series);
             println!("bake written to {}", out.display());
@@ -367,7 +367,7 @@ fn render_multipass(
         Some(dir) if dir.join(radiosity_bake::MANIFEST).exists() => load_bake(s, dir, q)?,
         bake_dir => {
             let q = q.unwrap_or(Quality::new(0.5)?);
-            let (simplified, series) = solve_indirect(s, engine, q)?;
+            let (simplified, series) = radiosity::simplify_and_decompose(s, engine, q)?;
             if let Some(dir) = bake_dir {
                 radiosity_bake::save_with(dir, scene_path, &simplified, &series)?;
                 eprintln!("bake written to {}", dir.display());
@@ -380,17 +380,6 @@ fn render_multipass(
         .with_context(|| format!("posing the scene at t = {time}"))?;
     let cache = IrradianceCache::new(&simplified, &series.indirect_at(time));
     multipass::render(s, &*engine, camera, time, settings, &cache)
-}
-
-/// Simplification and temporal decomposition with their radiosity solves.
-fn solve_indirect(
-    s: &Scene,
-    engine: &mut dyn InstancedEngine,
-    q: Quality,
-) -> Result<(Simplified, TimeSeries)> {
-    let simplified = radiosity::simplify(s, engine, q)?;
-    let series = temporal::decompose(s, &simplified, engine, q)?;
-    Ok((simplified, series))
 }
 
 /// A bake made for this scene (at quality `q`, if given).

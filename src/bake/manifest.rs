@@ -113,17 +113,19 @@ pub fn checksum_of(path: &Path) -> Option<String> {
 /// matches the checksum recorded after it was written (`expected` where the
 /// manifest already holds it, else the checksum file).
 pub fn verify(path: &Path, expected: Option<&str>) -> bool {
-    if !path.exists() {
-        return false;
+    path.exists()
+        && recorded(path, expected).is_some_and(|sum| checksum_of(path).as_ref() == Some(&sum))
+}
+
+/// The checksum recorded for an image: the manifest's (`expected`) where
+/// it has one, else the checksum file's, if it was written.
+pub fn recorded(path: &Path, expected: Option<&str>) -> Option<String> {
+    match expected {
+        Some(sum) => Some(sum.to_string()),
+        None => fs::read_to_string(checksum_path(path))
+            .ok()
+            .map(|s| s.trim().to_string()),
     }
-    let recorded = match expected {
-        Some(sum) => sum.to_string(),
-        None => match fs::read_to_string(checksum_path(path)) {
-            Ok(s) => s.trim().to_string(),
-            Err(_) => return false,
-        },
-    };
-    checksum_of(path).is_some_and(|sum| sum == recorded)
 }
 
 /// Writes `bytes` to a temporary file beside `target` and renames it into

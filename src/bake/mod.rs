@@ -26,7 +26,7 @@ use crate::camera::{Camera, Projection};
 use crate::image::{self, RangeImage};
 use crate::plan::Plan;
 use crate::radiosity::lookup::IrradianceCache;
-use crate::radiosity::temporal::{self, TimeSeries};
+use crate::radiosity::temporal::TimeSeries;
 use crate::radiosity::{self, bake as radiosity_bake, Quality, Simplified};
 use crate::render::multipass::{self, Indirect};
 use crate::render::{Progress, RenderSettings};
@@ -232,8 +232,7 @@ pub fn run(
         for (i, v) in plan.views.iter().enumerate() {
             ensure!(!v.times.is_empty(), "the plan gives view {i} no times");
         }
-        std::fs::create_dir_all(dir.join(manifest::IMAGES))
-            .with_context(|| format!("creating {}", dir.display()))?;
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let m = Manifest {
             format: manifest::FORMAT.into(),
             version: manifest::VERSION,
@@ -312,13 +311,7 @@ pub fn run(
     let recorded: Vec<Option<String>> = manifest
         .images
         .iter()
-        .map(|e| {
-            e.fnv1a64.clone().or_else(|| {
-                std::fs::read_to_string(manifest::checksum_path(&dir.join(&e.file)))
-                    .ok()
-                    .map(|s| s.trim().to_string())
-            })
-        })
+        .map(|e| manifest::recorded(&dir.join(&e.file), e.fnv1a64.as_deref()))
         .collect();
     summary.finished = recorded.iter().flatten().count();
     if summary.finished == summary.total && !manifest.complete {
@@ -420,8 +413,7 @@ fn radiosity_stage(
         quality.get()
     );
     engine.set_transforms(&scene.at(scene.animation.start))?;
-    let simplified = radiosity::simplify(scene, engine, quality)?;
-    let series = temporal::decompose(scene, &simplified, engine, quality)?;
+    let (simplified, series) = radiosity::simplify_and_decompose(scene, engine, quality)?;
     radiosity_bake::save_with(&path, &scene.source, &simplified, &series)?;
     Ok((simplified, series, Some(start.elapsed().as_secs_f64())))
 }

@@ -31,6 +31,18 @@ pub mod temporal;
 pub use simplify::simplify;
 pub use solver::solve;
 
+/// The object-space stages end to end: the scene simplified, then solved at
+/// the times the temporal decomposition picks.
+pub fn simplify_and_decompose(
+    scene: &Scene,
+    engine: &mut dyn crate::accel::InstancedEngine,
+    q: Quality,
+) -> Result<(Simplified, temporal::TimeSeries)> {
+    let simplified = simplify(scene, engine, q)?;
+    let series = temporal::decompose(scene, &simplified, engine, q)?;
+    Ok((simplified, series))
+}
+
 /// The user's quality `q ∈ [0, 1]`: every subdivision decision of the
 /// object-space stages follows from it (higher is finer and slower).
 #[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]

@@ -98,6 +98,19 @@ enum Command {
     /// Render the base range images of every (view, time) of the plan
     /// (paper §4.4) into a bake directory; resumes an unfinished bake.
     Bake(BakeArgs),
+    /// Synthesize one frame of a named camera at a time from a bake's base
+    /// images (view reprojection and time interpolation).
+    Synth(rangewalk::synth::command::SynthArgs),
+    /// Synthesize every frame of a walk path from a bake: range images,
+    /// previews, an animated preview and a summary.
+    Walk(rangewalk::synth::command::WalkArgs),
+    /// Error of range images against a reference range image: LRMS and
+    /// bias of luminance (the paper's measure).
+    Compare {
+        reference: PathBuf,
+        #[arg(required = true)]
+        images: Vec<PathBuf>,
+    },
     /// Measure a stage against path-traced references and write a report.
     Experiment {
         #[command(subcommand)]
@@ -327,6 +340,23 @@ fn run(cli: Cli) -> Result<()> {
         Command::Experiment { experiment } => rangewalk::eval::run(experiment)?,
         Command::Plan(args) => plan(args)?,
         Command::Bake(args) => bake_command(args)?,
+        Command::Compare { reference, images } => {
+            let r = image::read_exr(&reference)?;
+            for p in images {
+                let t = image::read_exr(&p)?;
+                let e = rangewalk::eval::metrics::compare(&t.radiance, &r.radiance, None)
+                    .with_context(|| format!("{} against {}", p.display(), reference.display()))?;
+                println!(
+                    "{}: LRMS {:.4}, bias {:+.4} over {} pixels",
+                    p.display(),
+                    e.lrms,
+                    e.bias,
+                    e.pixels
+                );
+            }
+        }
+        Command::Synth(args) => rangewalk::synth::command::synth(&args)?,
+        Command::Walk(args) => rangewalk::synth::command::walk(&args)?,
     }
     Ok(())
 }

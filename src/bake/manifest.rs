@@ -23,7 +23,7 @@ use super::Settings;
 /// Identifies a base-image bake manifest.
 pub const FORMAT: &str = "rangewalk-base-images";
 /// Bumped whenever the layout changes; other versions are refused.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 pub const MANIFEST: &str = "manifest.json";
 /// The object-space bake (radiosity), when indirect light comes from it.
 pub const RADIOSITY: &str = "radiosity";
@@ -33,7 +33,8 @@ pub const IMAGES: &str = "images";
 pub struct Manifest {
     pub format: String,
     pub version: u32,
-    /// The scene file as given when the bake was started.
+    /// The scene file the bake was started from (absolute where it could
+    /// be resolved), which `synth` and `walk` load.
     pub scene: PathBuf,
     pub scene_hash: ContentHash,
     pub settings: Settings,

@@ -41,6 +41,7 @@ pub use manifest::{ImageEntry, Manifest};
 /// The layers a base image holds besides its radiance.
 pub const DIRECT: &str = "direct";
 pub const INDIRECT: &str = "indirect";
+pub const DIFFUSE_DIRECT: &str = "diffuse_direct";
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
@@ -236,7 +237,7 @@ pub fn run(
         let m = Manifest {
             format: manifest::FORMAT.into(),
             version: manifest::VERSION,
-            scene: scene.source.clone(),
+            scene: std::fs::canonicalize(&scene.source).unwrap_or_else(|_| scene.source.clone()),
             scene_hash: hash,
             settings: *settings,
             images: image_entries(&plan),
@@ -464,7 +465,11 @@ fn render_image(
     let sum = image::write_exr_with_layers(
         &path,
         &out.image,
-        &[(DIRECT, &direct), (INDIRECT, &out.indirect)],
+        &[
+            (DIRECT, &direct),
+            (INDIRECT, &out.indirect),
+            (DIFFUSE_DIRECT, &out.diffuse_direct),
+        ],
     )?;
     manifest::write_atomically(
         &manifest::checksum_path(&path),
@@ -488,6 +493,9 @@ pub struct BaseImage {
     pub direct: Vec<Vec3>,
     /// Diffuse indirect light at the surfaces seen.
     pub indirect: Vec<Vec3>,
+    /// Direct light reflected by the diffuse lobe of the surfaces seen
+    /// (part of `direct`).
+    pub diffuse_direct: Vec<Vec3>,
 }
 
 impl Bake {
@@ -525,19 +533,26 @@ impl Bake {
             .get(k)
             .with_context(|| format!("{}: no image {k}", self.dir.display()))?;
         let path = self.dir.join(&e.file);
-        if !manifest::verify(&path, e.fnv1a64.as_deref()) {
-            bail!(
+        let damaged = || {
+            anyhow::anyhow!(
                 "{}: missing or damaged (its checksum differs from the manifest's); run the bake again to re-render it",
                 path.display()
-            );
+            )
+        };
+        let read = image::read_exr_with_layers_hashed(&path, &[DIRECT, INDIRECT, DIFFUSE_DIRECT]);
+        let Ok((image, layers, sum)) = read else {
+            return Err(damaged());
+        };
+        if e.fnv1a64.as_deref() != Some(manifest::hex(sum).as_str()) {
+            return Err(damaged());
         }
-        let (image, mut layers) = image::read_exr_with_layers(&path, &[DIRECT, INDIRECT])?;
-        let indirect = layers.pop().unwrap_or_default();
-        let direct = layers.pop().unwrap_or_default();
+        let [direct, indirect, diffuse_direct]: [Vec<Vec3>; 3] =
+            layers.try_into().map_err(|_| damaged())?;
         Ok(BaseImage {
             image,
             direct,
             indirect,
+            diffuse_direct,
         })
     }
 }

@@ -176,8 +176,19 @@ pub fn read_exr_with_layers(
     path: impl AsRef<Path>,
     layers: &[&str],
 ) -> Result<(RangeImage, Vec<Vec<Vec3>>)> {
+    let (image, values, _) = read_exr_with_layers_hashed(path, layers)?;
+    Ok((image, values))
+}
+
+/// [`read_exr_with_layers`], and the content hash of the file as
+/// [`exr_content_hash`] gives it, from one decode.
+pub fn read_exr_with_layers_hashed(
+    path: impl AsRef<Path>,
+    layers: &[&str],
+) -> Result<(RangeImage, Vec<Vec<Vec3>>, u64)> {
     let path = path.as_ref();
     let planes = read_planes(path)?;
+    let hash = planes.content_hash();
     let values = layers
         .iter()
         .map(|name| planes.rgb(name))
@@ -186,7 +197,7 @@ pub fn read_exr_with_layers(
     let image = planes
         .into_range()
         .with_context(|| format!("{}: not a range image", path.display()))?;
-    Ok((image, values))
+    Ok((image, values, hash))
 }
 
 /// Writes linear RGB radiance (top row first) as a Radiance `.hdr` picture.

@@ -24,6 +24,7 @@ mod integrator;
 mod lights;
 pub mod multipass;
 pub(crate) mod rng;
+pub mod surface;
 
 use integrator::Integrator;
 use lights::Lights;
@@ -51,14 +52,14 @@ pub struct RenderStats {
 
 const TILE: u32 = 16;
 
-/// One tile's mean radiances and diffuse-indirect parts (row-major within
-/// the tile) and its ray count.
+/// One tile's mean radiances and their parts (see [`Shade`]), row-major
+/// within the tile, and its ray count.
 struct TileResult {
     x0: u32,
     y0: u32,
     w: u32,
     radiance: Vec<Vec3>,
-    indirect: Vec<Vec3>,
+    parts: Vec<[Vec3; 2]>,
     rays: u64,
 }
 
@@ -104,8 +105,9 @@ pub fn render(
     };
     let mut image = RangeImage::empty(meta);
     let mut rays = first_hits(engine, camera, &mut image);
-    let shade =
-        |ray, _, rng: &mut Pcg32, rays: &mut u64| [integrator.radiance(ray, rng, rays), Vec3::ZERO];
+    let shade = |ray, _, rng: &mut Pcg32, rays: &mut u64| {
+        [integrator.radiance(ray, rng, rays), Vec3::ZERO, Vec3::ZERO]
+    };
     rays += shade_tiles(camera, settings, &mut image, &shade, Progress::Tiles).0;
     let (w, h) = (camera.width, camera.height);
     let stats = RenderStats {
@@ -118,10 +120,11 @@ pub fn render(
 
 /// Estimates one radiance sample along a camera ray, given the sample's
 /// index within its pixel (for stratification); the last argument counts
-/// the rays traced. Returns the whole radiance and the part of it that is
-/// diffuse indirect light at the surfaces seen (zero where a renderer does
-/// not tell it apart).
-type Shade<'a> = dyn Fn(Ray, u32, &mut Pcg32, &mut u64) -> [Vec3; 2] + Sync + 'a;
+/// the rays traced. Returns the whole radiance, the part of it that is
+/// diffuse indirect light at the surfaces seen, and the part that is direct
+/// light reflected by the diffuse lobe of the surface seen first (both zero
+/// where a renderer does not tell them apart).
+type Shade<'a> = dyn Fn(Ray, u32, &mut Pcg32, &mut u64) -> [Vec3; 3] + Sync + 'a;
 
 /// Where a render reports its progress: its own bar over tiles, or a bar
 /// owned by a larger job that counts pixels.
@@ -133,14 +136,14 @@ pub enum Progress<'a> {
 
 /// Shades every pixel sample of `camera`'s view in tiles handed out by
 /// rayon, with progress, writing mean radiances into `image`; returns the
-/// number of rays traced and the mean diffuse-indirect part of each pixel.
+/// number of rays traced and the mean parts of each pixel (see [`Shade`]).
 fn shade_tiles(
     camera: &Camera,
     settings: &RenderSettings,
     image: &mut RangeImage,
     shade: &Shade,
     progress: Progress,
-) -> (u64, Vec<Vec3>) {
+) -> (u64, Vec<[Vec3; 2]>) {
     let (w, h) = (camera.width, camera.height);
     let tiles: Vec<(u32, u32)> = (0..h.div_ceil(TILE))
         .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
@@ -171,16 +174,16 @@ fn shade_tiles(
     }
 
     let mut rays = 0;
-    let mut indirect = vec![Vec3::ZERO; image.len()];
+    let mut parts = vec![[Vec3::ZERO; 2]; image.len()];
     for t in results {
         rays += t.rays;
-        for (k, (&c, &i)) in t.radiance.iter().zip(&t.indirect).enumerate() {
+        for (k, (&c, &p)) in t.radiance.iter().zip(&t.parts).enumerate() {
             let (x, y) = (t.x0 + k as u32 % t.w, t.y0 + k as u32 / t.w);
             image.radiance[(y * w + x) as usize] = c;
-            indirect[(y * w + x) as usize] = i;
+            parts[(y * w + x) as usize] = p;
         }
     }
-    (rays, indirect)
+    (rays, parts)
 }
 
 /// Where in its pixel each sample looks: the first `n²` samples
@@ -231,28 +234,34 @@ fn render_tile(
     let x1 = (x0 + TILE).min(camera.width);
     let y1 = (y0 + TILE).min(camera.height);
     let mut radiance = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
-    let mut indirect = Vec::with_capacity(radiance.capacity());
+    let mut parts = Vec::with_capacity(radiance.capacity());
     let mut rays = 0;
     for y in y0..y1 {
         for x in x0..x1 {
             let pixel = y as u64 * camera.width as u64 + x as u64;
             let strata = PixelStrata::new(settings.spp, settings.seed, pixel);
-            let (mut sum, mut sum_indirect) = (DVec3::ZERO, DVec3::ZERO);
+            let mut sum = [DVec3::ZERO; 3];
             for s in 0..settings.spp {
                 let mut rng = Pcg32::for_sample(settings.seed, pixel, s as u64);
                 let (dx, dy) = strata.offset(s, rng.next_f32(), rng.next_f32());
                 let Some(ray) = camera.ray(x as f32 + dx, y as f32 + dy) else {
                     continue;
                 };
-                let [l, li] = shade(ray, s, &mut rng, &mut rays);
-                debug_assert!(l.is_finite(), "pixel ({x}, {y}) sample {s}: radiance {l}");
-                if l.is_finite() && li.is_finite() {
-                    sum += l.as_dvec3();
-                    sum_indirect += li.as_dvec3();
+                let l = shade(ray, s, &mut rng, &mut rays);
+                debug_assert!(
+                    l[0].is_finite(),
+                    "pixel ({x}, {y}) sample {s}: radiance {}",
+                    l[0]
+                );
+                if l.iter().all(|c| c.is_finite()) {
+                    for (sum, c) in sum.iter_mut().zip(l) {
+                        *sum += c.as_dvec3();
+                    }
                 }
             }
-            radiance.push((sum / settings.spp as f64).as_vec3());
-            indirect.push((sum_indirect / settings.spp as f64).as_vec3());
+            let mean = sum.map(|s| (s / settings.spp as f64).as_vec3());
+            radiance.push(mean[0]);
+            parts.push([mean[1], mean[2]]);
         }
     }
     TileResult {
@@ -260,7 +269,7 @@ fn render_tile(
         y0,
         w: x1 - x0,
         radiance,
-        indirect,
+        parts,
         rays,
     }
 }

@@ -64,6 +64,10 @@ pub struct Layers {
     /// light, traced specular and glossy reflection) is `image.radiance`
     /// minus this.
     pub indirect: Vec<Vec3>,
+    /// The part that is direct light (from light samples) reflected by the
+    /// diffuse lobe of the surface the camera ray meets first: what moves
+    /// when a shadow moves, and what synthesis re-shades.
+    pub diffuse_direct: Vec<Vec3>,
     pub stats: RenderStats,
 }
 
@@ -144,7 +148,7 @@ pub fn render_layers(
     };
     let mut image = RangeImage::empty(meta);
     let mut rays = first_hits(engine, camera, &mut image);
-    let (traced, indirect) = shade_tiles(
+    let (traced, parts) = shade_tiles(
         camera,
         settings,
         &mut image,
@@ -157,9 +161,11 @@ pub fn render_layers(
         samples: camera.width as u64 * camera.height as u64 * settings.spp as u64,
         rays,
     };
+    let (indirect, diffuse_direct) = parts.into_iter().map(|[i, d]| (i, d)).unzip();
     Ok(Layers {
         image,
         indirect,
+        diffuse_direct,
         stats,
     })
 }
@@ -195,18 +201,19 @@ enum Came {
 }
 
 impl Multipass<'_> {
-    /// One sample's radiance and the diffuse indirect part of it seen
-    /// directly or in mirrors.
-    fn radiance(&self, mut ray: Ray, sample: u32, rng: &mut Pcg32, rays: &mut u64) -> [Vec3; 2] {
+    /// One sample's radiance, the diffuse indirect part of it seen directly
+    /// or in mirrors, and the first hit's diffuse-lobe direct light.
+    fn radiance(&self, mut ray: Ray, sample: u32, rng: &mut Pcg32, rays: &mut u64) -> [Vec3; 3] {
         let mut l = Vec3::ZERO;
         let mut l_indirect = Vec3::ZERO;
+        let mut l_diffuse_direct = Vec3::ZERO;
         let mut beta = Vec3::ONE;
         let mut came = Came::Only;
         // No glossy bounce yet: what is found is seen directly or in mirrors.
         let mut sharp = true;
         let mut segments = 1u32;
         if self.max_depth == 0 {
-            return [l, l_indirect];
+            return [l, l_indirect, l_diffuse_direct];
         }
         loop {
             *rays += 1;
@@ -261,7 +268,11 @@ impl Multipass<'_> {
             let lit = diffuse.is_some() || specular.is_some_and(|s| !s.is_delta());
             if lit && !self.lights.is_empty() {
                 let u = self.light_numbers(segments, sample, rng);
-                l += beta * self.direct(p, ng, frame, wo_l, diffuse, specular, u, rays);
+                let [d, s] = self.direct(p, ng, frame, wo_l, diffuse, specular, u, rays);
+                l += beta * (d + s);
+                if segments == 1 {
+                    l_diffuse_direct += d;
+                }
             }
             if let Some(Lobes::Diffuse { albedo }) = diffuse {
                 if albedo != Vec3::ZERO {
@@ -320,7 +331,7 @@ impl Multipass<'_> {
             let wi = frame.to_world(s.wi);
             ray = Ray::new(offset_origin(p, ng, wi), wi);
         }
-        [l, l_indirect]
+        [l, l_indirect, l_diffuse_direct]
     }
 
     /// Uniform numbers for a light sample; at the camera's first hit the
@@ -339,8 +350,9 @@ impl Multipass<'_> {
         (u, u1, u2)
     }
 
-    /// Direct light by one light sample: the diffuse lobe with weight one,
-    /// the glossy lobe weighted against its own sampling.
+    /// Direct light by one light sample, reflected by the diffuse lobe (with
+    /// weight one) and by the glossy lobe (weighted against its own
+    /// sampling).
     #[allow(clippy::too_many_arguments)]
     fn direct(
         &self,
@@ -352,35 +364,38 @@ impl Multipass<'_> {
         specular: Option<Lobes>,
         (u, u1, u2): (f64, f32, f32),
         rays: &mut u64,
-    ) -> Vec3 {
+    ) -> [Vec3; 2] {
+        const NONE: [Vec3; 2] = [Vec3::ZERO; 2];
         let Some(ls) = self.lights.sample(p, ng, u, u1, u2) else {
-            return Vec3::ZERO;
+            return NONE;
         };
         let wi_l = frame.to_local(ls.wi);
         if wi_l.z <= 0.0 {
-            return Vec3::ZERO;
+            return NONE;
         }
-        let mut f = diffuse.map_or(Vec3::ZERO, |d| d.eval(wo_l, wi_l));
+        let fd = diffuse.map_or(Vec3::ZERO, |d| d.eval(wo_l, wi_l));
+        let mut fs = Vec3::ZERO;
         if let Some(s) = specular.filter(|s| !s.is_delta()) {
             let w = if ls.delta {
                 1.0
             } else {
                 power_heuristic(ls.pdf, s.pdf(wo_l, wi_l))
             };
-            f += s.eval(wo_l, wi_l) * w;
+            fs = s.eval(wo_l, wi_l) * w;
         }
-        if f == Vec3::ZERO {
-            return Vec3::ZERO;
+        if fd == Vec3::ZERO && fs == Vec3::ZERO {
+            return NONE;
         }
         *rays += 1;
         if self.engine.occluded(&ls.shadow) {
-            return Vec3::ZERO;
+            return NONE;
         }
-        let c = f * ls.radiance * (wi_l.z / ls.pdf);
-        if c.is_finite() {
-            c
+        let scale = ls.radiance * (wi_l.z / ls.pdf);
+        let (d, s) = (fd * scale, fs * scale);
+        if d.is_finite() && s.is_finite() {
+            [d, s]
         } else {
-            Vec3::ZERO
+            NONE
         }
     }
 }

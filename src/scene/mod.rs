@@ -254,7 +254,59 @@ pub struct PathKey {
     pub vfov_deg: f32,
 }
 
+impl WalkPath {
+    /// The times of the first and last keys.
+    pub fn span(&self) -> (f32, f32) {
+        match (self.keys.first(), self.keys.last()) {
+            (Some(a), Some(b)) => (a.time, b.time),
+            _ => (0.0, 0.0),
+        }
+    }
+
+    /// The viewer at time `t`: keys interpolated linearly (directions
+    /// renormalized), held before the first key and after the last.
+    pub fn at(&self, t: f32) -> CameraDesc {
+        let i = self.keys.partition_point(|k| k.time <= t);
+        let (a, b, s) = match (i, self.keys.len()) {
+            (_, 1) | (0, _) => (self.keys[0], self.keys[0], 0.0),
+            (i, n) if i == n => (self.keys[n - 1], self.keys[n - 1], 0.0),
+            (i, _) => {
+                let (a, b) = (self.keys[i - 1], self.keys[i]);
+                (a, b, (t - a.time) / (b.time - a.time))
+            }
+        };
+        let direction = a.direction.lerp(b.direction, s).normalize_or_zero();
+        CameraDesc {
+            name: format!("{}@{t}", self.name),
+            position: a.position.lerp(b.position, s),
+            direction: if direction == Vec3::ZERO {
+                a.direction
+            } else {
+                direction
+            },
+            up: a.up.lerp(b.up, s).normalize_or_zero(),
+            vfov_deg: a.vfov_deg + (b.vfov_deg - a.vfov_deg) * s,
+        }
+    }
+}
+
 impl Scene {
+    /// The walk path named `name`.
+    pub fn path(&self, name: &str) -> Result<&WalkPath> {
+        self.paths.iter().find(|p| p.name == name).ok_or_else(|| {
+            let known: Vec<&str> = self.paths.iter().map(|p| p.name.as_str()).collect();
+            anyhow!(
+                "{}: no path named `{name}` (paths: {})",
+                self.source.display(),
+                if known.is_empty() {
+                    "none".to_string()
+                } else {
+                    known.join(", ")
+                }
+            )
+        })
+    }
+
     /// Reads and validates `scene.toml` and the meshes it names.
     pub fn load(path: impl Into<PathBuf>) -> Result<Scene> {
         load::load(path.into())

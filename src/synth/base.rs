@@ -1,0 +1,330 @@
+//! A base image as synthesis holds it: what does not change from frame to
+//! frame computed once (each pixel's world point, bounds of tiles of them),
+//! radiance in half floats. 32 bytes per pixel ([`BYTES_PER_PIXEL`]): a
+//! 2,544² sphere base takes 207 MB, eight of them 1.66 GB.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use anyhow::{ensure, Result};
+use glam::Vec3;
+use half::f16;
+use rayon::prelude::*;
+
+use crate::bake::{Bake, BaseImage};
+use crate::camera::Camera;
+use crate::image::NO_HIT;
+use crate::scene::Scene;
+
+/// Side of the square tiles whose bounds cull what a frame cannot see.
+pub const TILE: u32 = 16;
+
+/// Point, object id, primitive id (4 bytes each, the point 12), radiance
+/// and diffuse direct light (3 half floats each).
+pub const BYTES_PER_PIXEL: usize = 12 + 4 + 4 + 6 + 6;
+
+/// Axis-aligned bounds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    pub lo: Vec3,
+    pub hi: Vec3,
+}
+
+impl Bounds {
+    const EMPTY: Bounds = Bounds {
+        lo: Vec3::splat(f32::INFINITY),
+        hi: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    fn grow(&mut self, p: Vec3) {
+        self.lo = self.lo.min(p);
+        self.hi = self.hi.max(p);
+    }
+
+    fn is_empty(&self) -> bool {
+        self.lo.x > self.hi.x
+    }
+
+    pub fn corners(&self) -> [Vec3; 8] {
+        let (a, b) = (self.lo, self.hi);
+        [
+            Vec3::new(a.x, a.y, a.z),
+            Vec3::new(b.x, a.y, a.z),
+            Vec3::new(a.x, b.y, a.z),
+            Vec3::new(b.x, b.y, a.z),
+            Vec3::new(a.x, a.y, b.z),
+            Vec3::new(b.x, a.y, b.z),
+            Vec3::new(a.x, b.y, b.z),
+            Vec3::new(b.x, b.y, b.z),
+        ]
+    }
+}
+
+/// The world points of one tile of base pixels, with the pixels to its
+/// right and below (the far corners of its pixels' splats).
+#[derive(Clone, Debug)]
+pub struct Tile {
+    pub x0: u32,
+    pub y0: u32,
+    /// Points of objects that never move.
+    pub fixed: Option<Bounds>,
+    /// Points of each moving object, by object id.
+    pub moving: Vec<(u32, Bounds)>,
+    /// Directions of the pixels that see nothing (their `points` are unit
+    /// directions): they project as points at infinity.
+    pub sky: Option<Bounds>,
+}
+
+/// What a pixel holds where its ray meets no surface: `point` is then the
+/// ray's unit direction, or zero where the projection covers no direction
+/// (outside a fisheye's circle).
+pub const SKY: u32 = NO_HIT;
+
+/// One base image, ready to be projected.
+#[derive(Debug)]
+pub struct Base {
+    /// Index of the image in the bake's manifest.
+    pub image: usize,
+    pub view: usize,
+    pub time: f32,
+    pub camera: Camera,
+    /// World point at `time` of each pixel's first hit (see [`SKY`]).
+    pub points: Vec<Vec3>,
+    pub object: Vec<u32>,
+    pub primitive: Vec<u32>,
+    /// Radiance divided by `scale`.
+    pub radiance: Vec<[f16; 3]>,
+    /// The diffuse-lobe direct light in the radiance, divided by `scale`.
+    pub diffuse_direct: Vec<[f16; 3]>,
+    /// A power of two that brings the brightest radiance within half-float
+    /// range, whatever the scene's intensities.
+    pub scale: f32,
+    pub tiles: Vec<Tile>,
+}
+
+fn to_half(c: Vec3, inv_scale: f32) -> [f16; 3] {
+    let c = (c * inv_scale).max(Vec3::ZERO);
+    [f16::from_f32(c.x), f16::from_f32(c.y), f16::from_f32(c.z)]
+}
+
+pub fn from_half(c: &[f16; 3]) -> Vec3 {
+    Vec3::new(c[0].to_f32(), c[1].to_f32(), c[2].to_f32())
+}
+
+impl Base {
+    pub fn new(scene: &Scene, image: usize, view: usize, b: BaseImage) -> Result<Base> {
+        let img = b.image;
+        let n = img.len();
+        ensure!(
+            b.diffuse_direct.len() == n,
+            "base image {image}: layers and image differ in size"
+        );
+        let camera = img.meta.camera;
+        ensure!(
+            camera.width == img.width && camera.height == img.height,
+            "base image {image}: its camera is {}x{}, its pixels {}x{}",
+            camera.width,
+            camera.height,
+            img.width,
+            img.height
+        );
+        for &o in &img.object_id {
+            ensure!(
+                o == NO_HIT || (o as usize) < scene.objects.len(),
+                "base image {image}: object id {o}, but the scene has {} objects",
+                scene.objects.len()
+            );
+        }
+        let brightest = img
+            .radiance
+            .par_iter()
+            .map(|c| if c.is_finite() { c.max_element() } else { 0.0 })
+            .reduce(|| 0.0, f32::max);
+        // Half floats reach 65504; keep a factor two of headroom.
+        let scale = if brightest > 0.0 {
+            2f32.powi((brightest / 32768.0).log2().ceil() as i32)
+        } else {
+            1.0
+        };
+        let inv = 1.0 / scale;
+        let w = img.width as usize;
+        let points: Vec<Vec3> = (0..n)
+            .into_par_iter()
+            .map(|k| {
+                let (x, y) = ((k % w) as f32 + 0.5, (k / w) as f32 + 0.5);
+                match camera.ray(x, y) {
+                    Some(r) if img.object_id[k] != NO_HIT => r.at(img.distance[k]),
+                    Some(r) => r.dir.normalize_or_zero(),
+                    None => Vec3::ZERO,
+                }
+            })
+            .collect();
+        let radiance = img.radiance.par_iter().map(|&c| to_half(c, inv)).collect();
+        let diffuse_direct = b
+            .diffuse_direct
+            .par_iter()
+            .map(|&c| to_half(c, inv))
+            .collect();
+        let moving: Vec<bool> = scene
+            .objects
+            .iter()
+            .map(|o| !o.motion.is_static())
+            .collect();
+        let tiles = tiles(&camera, &points, &img.object_id, &moving);
+        Ok(Base {
+            image,
+            view,
+            time: img.meta.time,
+            camera,
+            points,
+            object: img.object_id,
+            primitive: img.primitive_id,
+            radiance,
+            diffuse_direct,
+            scale,
+            tiles,
+        })
+    }
+
+    pub fn width(&self) -> u32 {
+        self.camera.width
+    }
+
+    pub fn height(&self) -> u32 {
+        self.camera.height
+    }
+
+    pub fn bytes(&self) -> usize {
+        self.points.len() * BYTES_PER_PIXEL
+            + self
+                .tiles
+                .iter()
+                .map(|t| 72 + 28 * t.moving.len())
+                .sum::<usize>()
+    }
+
+    pub fn radiance_at(&self, k: usize) -> Vec3 {
+        from_half(&self.radiance[k]) * self.scale
+    }
+
+    pub fn diffuse_direct_at(&self, k: usize) -> Vec3 {
+        from_half(&self.diffuse_direct[k]) * self.scale
+    }
+}
+
+fn tiles(camera: &Camera, points: &[Vec3], object: &[u32], moving: &[bool]) -> Vec<Tile> {
+    let (w, h) = (camera.width, camera.height);
+    let origins: Vec<(u32, u32)> = (0..h.div_ceil(TILE))
+        .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
+        .collect();
+    origins
+        .into_par_iter()
+        .map(|(x0, y0)| {
+            let mut tile = Tile {
+                x0,
+                y0,
+                fixed: None,
+                moving: Vec::new(),
+                sky: None,
+            };
+            let mut fixed = Bounds::EMPTY;
+            let mut sky = Bounds::EMPTY;
+            let mut by_object: Vec<(u32, Bounds)> = Vec::new();
+            for y in y0..(y0 + TILE + 1).min(h) {
+                for x in x0..(x0 + TILE + 1).min(w) {
+                    let k = (y * w + x) as usize;
+                    let o = object[k];
+                    if o == SKY {
+                        if points[k] != Vec3::ZERO {
+                            sky.grow(points[k]);
+                        }
+                    } else if moving[o as usize] {
+                        match by_object.iter_mut().find(|(id, _)| *id == o) {
+                            Some((_, b)) => b.grow(points[k]),
+                            None => {
+                                let mut b = Bounds::EMPTY;
+                                b.grow(points[k]);
+                                by_object.push((o, b));
+                            }
+                        }
+                    } else {
+                        fixed.grow(points[k]);
+                    }
+                }
+            }
+            tile.fixed = (!fixed.is_empty()).then_some(fixed);
+            tile.sky = (!sky.is_empty()).then_some(sky);
+            tile.moving = by_object;
+            tile
+        })
+        .collect()
+}
+
+/// Bases read from a bake, kept while they fit a memory budget, the least
+/// recently used dropped first.
+pub struct BaseCache {
+    budget: usize,
+    held: HashMap<usize, (Arc<Base>, u64)>,
+    clock: u64,
+    /// Seconds spent reading and preparing bases.
+    pub load_seconds: f64,
+    pub loads: usize,
+}
+
+impl BaseCache {
+    pub fn new(budget_bytes: usize) -> Self {
+        Self {
+            budget: budget_bytes,
+            held: HashMap::new(),
+            clock: 0,
+            load_seconds: 0.0,
+            loads: 0,
+        }
+    }
+
+    pub fn bytes(&self) -> usize {
+        self.held.values().map(|(b, _)| b.bytes()).sum()
+    }
+
+    /// Base image `k` of the bake's manifest, read and prepared on first
+    /// use. Bases that `keep` names are never dropped to make room.
+    pub fn get(
+        &mut self,
+        bake: &Bake,
+        scene: &Scene,
+        k: usize,
+        keep: &[usize],
+    ) -> Result<Arc<Base>> {
+        self.clock += 1;
+        if let Some((b, used)) = self.held.get_mut(&k) {
+            *used = self.clock;
+            return Ok(b.clone());
+        }
+        let start = std::time::Instant::now();
+        let view = bake
+            .manifest
+            .images
+            .get(k)
+            .map(|e| e.view)
+            .unwrap_or_default();
+        let base = Arc::new(Base::new(scene, k, view, bake.read(k)?)?);
+        self.load_seconds += start.elapsed().as_secs_f64();
+        self.loads += 1;
+        while !self.held.is_empty() && self.bytes() + base.bytes() > self.budget {
+            let oldest = self
+                .held
+                .iter()
+                .filter(|(k, _)| !keep.contains(k))
+                .min_by_key(|(_, (_, used))| *used)
+                .map(|(&k, _)| k);
+            match oldest {
+                Some(o) => {
+                    self.held.remove(&o);
+                }
+                None => break,
+            }
+        }
+        self.held.insert(k, (base.clone(), self.clock));
+        Ok(base)
+    }
+}

@@ -1,0 +1,212 @@
+//! The `synth` and `walk` commands.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+
+use super::walk::{self, WalkSettings};
+use super::{check_bake, view_space_warning, Blend, Fill, Options, Synthesizer, TimeInterp};
+use crate::bake::Bake;
+use crate::image;
+use crate::scene::Scene;
+
+/// How frames are made from the bases (shared by `synth` and `walk`).
+#[derive(clap::Args, Clone, Debug)]
+pub struct SynthOptions {
+    /// The scene the bake was made from [default: the one its manifest
+    /// names].
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Hole filling (pinterp's -f0, -ff, -fb, -fa).
+    #[arg(long, value_enum, default_value_t = Fill::Both)]
+    pub fill: Fill,
+    /// Interpolation between base times.
+    #[arg(long, value_enum, default_value_t = TimeInterp::Motion)]
+    pub time_interp: TimeInterp,
+    /// Base views to project, nearest first.
+    #[arg(long, default_value_t = 4)]
+    pub bases: usize,
+    /// Samples within the depth tolerance: averaged by ray angle, or the
+    /// nearest base's.
+    #[arg(long, value_enum, default_value_t = Blend::Average)]
+    pub blend: Blend,
+    /// Relative depth tolerance of the z-buffer.
+    #[arg(long, default_value_t = 0.02)]
+    pub tolerance: f32,
+    /// Farthest a background fill carries a value, in pixels.
+    #[arg(long, default_value_t = 32)]
+    pub fill_reach: u16,
+    /// Light samples per pixel when re-shading.
+    #[arg(long, default_value_t = 4)]
+    pub reshade_samples: u32,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Memory for bases held between frames, in MiB.
+    #[arg(long, default_value_t = 1800)]
+    pub base_memory: usize,
+    /// Exposure of previews in stops.
+    #[arg(long, default_value_t = 0.0)]
+    pub exposure: f32,
+}
+
+impl SynthOptions {
+    pub fn options(&self) -> Result<Options> {
+        anyhow::ensure!(self.bases > 0, "--bases must be at least 1");
+        anyhow::ensure!(
+            self.tolerance > 0.0 && self.tolerance < 1.0,
+            "--tolerance {} must lie in (0, 1)",
+            self.tolerance
+        );
+        anyhow::ensure!(
+            self.reshade_samples > 0,
+            "--reshade-samples must be at least 1"
+        );
+        Ok(Options {
+            fill: self.fill,
+            time_interp: self.time_interp,
+            bases: self.bases,
+            blend: self.blend,
+            tolerance: self.tolerance,
+            fill_reach: self.fill_reach,
+            reshade_samples: self.reshade_samples,
+            seed: self.seed,
+        })
+    }
+
+    /// The bake in `dir` and the scene it was made from, checked against
+    /// each other.
+    pub fn open(&self, dir: &std::path::Path) -> Result<(Scene, Bake)> {
+        let manifest = crate::bake::Manifest::read(dir)?;
+        let path = self.scene.clone().unwrap_or(manifest.scene);
+        let scene = Scene::load(&path).with_context(|| {
+            format!(
+                "loading the scene of {} (pass --scene where it has moved)",
+                dir.display()
+            )
+        })?;
+        let bake = Bake::open(dir, &scene)?;
+        check_bake(&bake)?;
+        Ok((scene, bake))
+    }
+}
+
+#[derive(clap::Args, Clone, Debug)]
+pub struct SynthArgs {
+    /// A complete bake directory (`rangewalk bake`).
+    pub bake: PathBuf,
+    /// Named camera of the scene.
+    #[arg(long, default_value = "main")]
+    pub camera: String,
+    /// Scene time in seconds.
+    #[arg(long)]
+    pub time: f32,
+    #[arg(long, default_value = "512x512", value_parser = image::parse_size)]
+    pub size: (u32, u32),
+    /// Output range image (OpenEXR).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write a tone-mapped PNG here.
+    #[arg(long)]
+    pub preview: Option<PathBuf>,
+    #[command(flatten)]
+    pub synth: SynthOptions,
+}
+
+pub fn synth(args: &SynthArgs) -> Result<()> {
+    let options = args.synth.options()?;
+    let (scene, bake) = args.synth.open(&args.bake)?;
+    let desc = scene.camera(&args.camera)?;
+    if let Some(w) = view_space_warning(&scene, &format!("camera `{}`", desc.name), desc.position) {
+        eprintln!("{w}");
+    }
+    let camera = desc.perspective(args.size.0, args.size.1)?;
+    let mut synth = Synthesizer::new(&scene, &bake, args.synth.base_memory << 20);
+    let (frame, stats) = synth.frame(&camera, args.time, &options)?;
+    image::write_exr(&args.out, &frame)?;
+    if let Some(p) = &args.preview {
+        image::write_png_preview(
+            p,
+            frame.width,
+            frame.height,
+            &frame.radiance,
+            args.synth.exposure,
+        )?;
+    }
+    println!(
+        "{}: {}x{} at t = {} s from {} base image(s) ({}): {:.1} ms synthesis + {:.3} s reading bases; {} hole pixel(s), {} filled{}",
+        args.out.display(),
+        frame.width,
+        frame.height,
+        args.time,
+        stats.images.len(),
+        stats
+            .images
+            .iter()
+            .map(|&k| bake.manifest.images[k].file.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
+        1e3 * (stats.seconds - stats.load_seconds),
+        stats.load_seconds,
+        stats.holes,
+        stats.filled,
+        if options.time_interp == TimeInterp::Reshade {
+            format!(", {} mirror pixel(s) no base showed", stats.mirror_misses)
+        } else {
+            String::new()
+        }
+    );
+    Ok(())
+}
+
+#[derive(clap::Args, Clone, Debug)]
+pub struct WalkArgs {
+    /// A complete bake directory (`rangewalk bake`).
+    pub bake: PathBuf,
+    /// Walk path of the scene.
+    #[arg(long)]
+    pub path: String,
+    #[arg(long, default_value = "512x512", value_parser = image::parse_size)]
+    pub size: (u32, u32),
+    /// Output folder: frames (EXR and PNG), walk.png (animated), summary.json.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Frames per second of scene time [default: the scene's].
+    #[arg(long)]
+    pub fps: Option<f32>,
+    #[command(flatten)]
+    pub synth: SynthOptions,
+}
+
+pub fn walk(args: &WalkArgs) -> Result<()> {
+    let options = args.synth.options()?;
+    let (scene, bake) = args.synth.open(&args.bake)?;
+    let mut synth = Synthesizer::new(&scene, &bake, args.synth.base_memory << 20);
+    let settings = WalkSettings {
+        path: args.path.clone(),
+        width: args.size.0,
+        height: args.size.1,
+        fps: args.fps,
+        options,
+        exposure: args.synth.exposure,
+    };
+    let s = walk::walk(&mut synth, &settings, &args.out)?;
+    let holes: usize = s.holes.iter().sum();
+    println!(
+        "{}: {} frames of path `{}` at {}x{}: {:.1} frames/s synthesis ({:.3} s), {:.3} s reading {} base image(s), {:.3} s in all; {} hole pixel(s); peak memory {}; {} bytes per base pixel",
+        s.out.display(),
+        s.frames,
+        s.path,
+        args.size.0,
+        args.size.1,
+        s.frames_per_second,
+        s.synthesis_seconds,
+        s.load_seconds,
+        s.base_loads,
+        s.total_seconds,
+        holes,
+        s.peak_resident_bytes
+            .map_or("unknown".to_string(), |b| format!("{:.0} MiB", b as f64 / (1 << 20) as f64)),
+        s.bytes_per_base_pixel
+    );
+    Ok(())
+}

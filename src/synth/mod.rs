@@ -1,0 +1,430 @@
+//! Walk-through synthesis (paper §4.5): frames for any camera in the view
+//! space at any time, made from the base range images of a bake by view
+//! reprojection (`pinterp`'s semantics: z-buffer with a relative depth
+//! tolerance, nearest-first or ray-angle-weighted blending, foreground and
+//! background fill) and interpolation in time: per pixel between the two
+//! base times bracketing the frame's (`pcomb`, the paper's), with every
+//! sample moved by its object's rigid motion (motion-compensated), or that
+//! and direct light evaluated again at the frame's time (re-shaded).
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{bail, ensure, Context, Result};
+use glam::{Affine3A, Vec3};
+
+use crate::accel::{self, InstancedEngine};
+use crate::bake::Bake;
+use crate::camera::Camera;
+use crate::image::{RangeImage, RangeMeta, NO_HIT};
+use crate::scene::{Scene, ViewSpace};
+
+pub mod base;
+pub mod command;
+mod fill;
+mod reshade;
+pub mod walk;
+mod warp;
+
+pub use base::{Base, BaseCache, BYTES_PER_PIXEL};
+pub use warp::Blend;
+use warp::{Accum, Pass, Target, WarpSettings, SKY_Z};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Fill {
+    /// A base pixel lands on at most one frame pixel; holes stay empty.
+    None,
+    /// Each base pixel covers the parallelogram to its right and lower
+    /// neighbours' projections, where their depths agree.
+    Foreground,
+    /// Holes take the farther of their nearest filled neighbours.
+    Background,
+    /// Foreground, then background.
+    Both,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TimeInterp {
+    /// Each time's frame projected alone, blended per pixel (the paper's).
+    Linear,
+    /// Samples moved by their object's motion to the frame's time and
+    /// projected together.
+    Motion,
+    /// Motion-compensated, with the diffuse direct light evaluated again at
+    /// the frame's time and mirrors traced again.
+    Reshade,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Options {
+    pub fill: Fill,
+    pub time_interp: TimeInterp,
+    /// How many base views, nearest first.
+    pub bases: usize,
+    pub blend: Blend,
+    /// Relative depth tolerance (pinterp's `-t`, default 0.02).
+    pub tolerance: f32,
+    /// Farthest a background fill carries a value, in pixels.
+    pub fill_reach: u16,
+    /// Light samples per pixel when re-shading.
+    pub reshade_samples: u32,
+    pub seed: u64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            fill: Fill::Both,
+            time_interp: TimeInterp::Motion,
+            bases: 4,
+            blend: Blend::Average,
+            tolerance: 0.02,
+            fill_reach: 32,
+            reshade_samples: 4,
+            seed: 1,
+        }
+    }
+}
+
+/// What making one frame took and found.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    /// Wall time, base loading included.
+    pub seconds: f64,
+    /// Of which reading and preparing bases.
+    pub load_seconds: f64,
+    /// Manifest indices of the base images used.
+    pub images: Vec<usize>,
+    /// Pixels no sample reached and no fill filled.
+    pub holes: usize,
+    /// Pixels filled by background fill.
+    pub filled: usize,
+    /// Mirror pixels whose reflection no base showed (kept as projected).
+    pub mirror_misses: usize,
+}
+
+/// Frames from one bake.
+pub struct Synthesizer<'a> {
+    pub scene: &'a Scene,
+    pub bake: &'a Bake,
+    cache: BaseCache,
+    /// Built on first use by re-shading.
+    engine: Option<Box<dyn InstancedEngine>>,
+}
+
+/// Memory kept for bases by default: eight 2,600² bases fit.
+pub const DEFAULT_BUDGET: usize = 1800 << 20;
+
+impl<'a> Synthesizer<'a> {
+    pub fn new(scene: &'a Scene, bake: &'a Bake, budget_bytes: usize) -> Self {
+        Self {
+            scene,
+            bake,
+            cache: BaseCache::new(budget_bytes),
+            engine: None,
+        }
+    }
+
+    pub fn cache(&self) -> &BaseCache {
+        &self.cache
+    }
+
+    /// Base views nearest `position` first, at most `count`.
+    pub fn nearest_views(&self, position: Vec3, count: usize) -> Vec<usize> {
+        let views = &self.bake.manifest.plan.views;
+        let mut order: Vec<usize> = (0..views.len()).collect();
+        order.sort_by(|&a, &b| {
+            let (da, db) = (
+                views[a].position.distance_squared(position),
+                views[b].position.distance_squared(position),
+            );
+            da.total_cmp(&db).then(a.cmp(&b))
+        });
+        order.truncate(count.max(1));
+        order
+    }
+
+    /// The images of `view` bracketing `t` and the fraction of the way from
+    /// the first to the second (one image where `t` is a base time or
+    /// outside the view's times).
+    pub fn bracket(&self, view: usize, t: f32) -> Result<(usize, Option<(usize, f32)>)> {
+        let m = &self.bake.manifest;
+        let times = &m.plan.views[view].times;
+        let index = |j: usize| {
+            m.images
+                .iter()
+                .position(|e| e.view == view && e.time_index == j)
+                .with_context(|| {
+                    format!("the bake's manifest has no image of view {view} time {j}")
+                })
+        };
+        ensure!(!times.is_empty(), "view {view} of the bake has no times");
+        let after = times.partition_point(|&x| x <= t);
+        if after == 0 {
+            return Ok((index(0)?, None));
+        }
+        let lo = after - 1;
+        if after == times.len() || times[lo] == t {
+            return Ok((index(lo)?, None));
+        }
+        let alpha = (t - times[lo]) / (times[after] - times[lo]);
+        Ok((index(lo)?, Some((index(after)?, alpha))))
+    }
+
+    /// Synthesizes the frame `camera` sees at time `t`.
+    pub fn frame(
+        &mut self,
+        camera: &Camera,
+        t: f32,
+        opts: &Options,
+    ) -> Result<(RangeImage, FrameStats)> {
+        ensure!(t.is_finite(), "frame time {t} is not finite");
+        ensure!(
+            opts.tolerance > 0.0 && opts.tolerance < 1.0,
+            "depth tolerance {} must lie in (0, 1)",
+            opts.tolerance
+        );
+        let start = Instant::now();
+        let load_before = self.cache.load_seconds;
+        let views = self.nearest_views(camera.position, opts.bases);
+        // (image, view, weight in time, time fraction, to-be-linear-second)
+        let mut wanted: Vec<(usize, f32, bool)> = Vec::new();
+        for &v in &views {
+            let (lo, hi) = self.bracket(v, t)?;
+            match hi {
+                None => wanted.push((lo, 1.0, false)),
+                Some((hi, alpha)) => {
+                    // Nearer time first, for nearest-first blending.
+                    if alpha <= 0.5 {
+                        wanted.push((lo, 1.0 - alpha, false));
+                        wanted.push((hi, alpha, true));
+                    } else {
+                        wanted.push((hi, alpha, true));
+                        wanted.push((lo, 1.0 - alpha, false));
+                    }
+                }
+            }
+        }
+        let keep: Vec<usize> = wanted.iter().map(|w| w.0).collect();
+        let mut bases: Vec<Arc<Base>> = Vec::with_capacity(wanted.len());
+        for &(k, _, _) in &wanted {
+            bases.push(self.cache.get(self.bake, self.scene, k, &keep)?);
+        }
+        let target = Target::new(*camera);
+        let settings = WarpSettings {
+            tolerance: opts.tolerance,
+            splat: matches!(opts.fill, Fill::Foreground | Fill::Both),
+            blend: opts.blend,
+        };
+        let poses_t = self.scene.at(t);
+        let moves_of = |base: &Base| -> Vec<Option<Affine3A>> {
+            if opts.time_interp == TimeInterp::Linear {
+                return Vec::new();
+            }
+            self.scene
+                .objects
+                .iter()
+                .zip(&poses_t)
+                .map(|(o, &now)| {
+                    (!o.motion.is_static()).then(|| now * o.motion.pose(base.time).inverse())
+                })
+                .collect()
+        };
+        let (w, h) = (camera.width, camera.height);
+        let n = (w * h) as usize;
+        let mut stats = FrameStats {
+            images: keep.clone(),
+            ..FrameStats::default()
+        };
+        let background = matches!(opts.fill, Fill::Background | Fill::Both);
+        let finish = |buffer: &mut Vec<Accum>, stats: &mut FrameStats| {
+            if background {
+                stats.filled += fill::background(buffer, w, h, opts.fill_reach);
+            }
+        };
+        let pixels: Vec<Accum> = if opts.time_interp == TimeInterp::Linear {
+            // pinterp per time, then pcomb: two frames blended per pixel.
+            let mut first = vec![Accum::default(); n];
+            let mut second = vec![Accum::default(); n];
+            let passes = |later: bool| -> Vec<Pass> {
+                bases
+                    .iter()
+                    .zip(&wanted)
+                    .filter(|(_, w)| w.2 == later)
+                    .map(|(b, &(_, weight, _))| Pass {
+                        base: b,
+                        moves: Vec::new(),
+                        weight: 1.0,
+                        alpha: if later { weight } else { 0.0 },
+                    })
+                    .collect()
+            };
+            let (lo, hi) = (passes(false), passes(true));
+            warp::warp(&target, &lo, &settings, &mut first);
+            warp::warp(&target, &hi, &settings, &mut second);
+            finish(&mut first, &mut stats);
+            finish(&mut second, &mut stats);
+            first
+                .iter()
+                .zip(&second)
+                .map(|(a, b)| blend_linear(a, b))
+                .collect()
+        } else {
+            let passes: Vec<Pass> = bases
+                .iter()
+                .zip(&wanted)
+                .map(|(b, &(_, weight, _))| Pass {
+                    base: b,
+                    moves: moves_of(b),
+                    // A sample of the other time still claims its pixel
+                    // (what a moving object uncovered) when nothing nearer
+                    // in time does.
+                    weight: weight.max(1e-3),
+                    alpha: 0.0,
+                })
+                .collect();
+            let mut buffer = vec![Accum::default(); n];
+            warp::warp(&target, &passes, &settings, &mut buffer);
+            finish(&mut buffer, &mut stats);
+            buffer
+        };
+
+        let mut image = RangeImage::empty(RangeMeta {
+            camera: *camera,
+            time: t,
+            scene: format!(
+                "{} t={t} synthesized from {} ({:?}, fill {:?}, {} base image(s))",
+                self.scene.source.display(),
+                self.bake.dir.display(),
+                opts.time_interp,
+                opts.fill,
+                bases.len()
+            ),
+        });
+        for (k, a) in pixels.iter().enumerate() {
+            if a.is_empty() {
+                stats.holes += 1;
+                continue;
+            }
+            image.radiance[k] = a.radiance / a.w;
+            if a.z < SKY_Z {
+                image.distance[k] = a.z;
+                image.object_id[k] = a.object;
+                image.primitive_id[k] = a.primitive;
+            }
+        }
+        fill_normals(self.scene, &poses_t, &pixels, &mut image);
+        if opts.time_interp == TimeInterp::Reshade {
+            let scene = self.scene;
+            let engine = self.engine_at(t)?;
+            stats.mirror_misses = reshade::apply(
+                scene,
+                engine,
+                t,
+                &bases,
+                &wanted.iter().map(|w| w.1).collect::<Vec<_>>(),
+                &pixels,
+                opts,
+                &mut image,
+            )?;
+        }
+        stats.load_seconds = self.cache.load_seconds - load_before;
+        stats.seconds = start.elapsed().as_secs_f64();
+        Ok((image, stats))
+    }
+
+    fn engine_at(&mut self, t: f32) -> Result<&dyn InstancedEngine> {
+        if self.engine.is_none() {
+            let backend = self.bake.manifest.settings.backend;
+            self.engine = Some(
+                accel::build(backend, &self.scene.geometry(), &self.scene.at(t))
+                    .with_context(|| format!("building the {backend} ray engine for re-shading"))?,
+            );
+        }
+        let engine = self.engine.as_mut().expect("built above");
+        engine.set_transforms(&self.scene.at(t))?;
+        Ok(&**engine)
+    }
+}
+
+/// `pcomb -s (1−α) A -s α B`, where `α` is the time fraction of the views
+/// that reached the pixel; a pixel only one time reached takes that time.
+fn blend_linear(a: &Accum, b: &Accum) -> Accum {
+    match (a.is_empty(), b.is_empty()) {
+        (true, true) => *a,
+        (false, true) => *a,
+        (true, false) => *b,
+        (false, false) => {
+            // Mean fraction of the later views; the earlier ones carry 0.
+            let alpha = (b.alpha / b.w).clamp(0.0, 1.0);
+            let (ca, cb) = (a.radiance / a.w, b.radiance / b.w);
+            let (da, db) = (a.diffuse_direct / a.w, b.diffuse_direct / b.w);
+            let nearer = if alpha <= 0.5 { a } else { b };
+            Accum {
+                w: 1.0,
+                radiance: ca * (1.0 - alpha) + cb * alpha,
+                diffuse_direct: da * (1.0 - alpha) + db * alpha,
+                ..*nearer
+            }
+        }
+    }
+}
+
+/// Normals of the surfaces shown, from their triangles at the frame's
+/// time, turned towards the camera.
+fn fill_normals(scene: &Scene, poses: &[Affine3A], pixels: &[Accum], image: &mut RangeImage) {
+    let cam = image.meta.camera.position;
+    for (k, a) in pixels.iter().enumerate() {
+        let o = image.object_id[k];
+        if a.is_empty() || o == NO_HIT {
+            continue;
+        }
+        let mesh = &scene.objects[o as usize].mesh;
+        let Some(&[i, j, l]) = mesh.triangles.get(a.primitive as usize) else {
+            continue;
+        };
+        let p = &mesh.positions;
+        let n = poses[o as usize]
+            .transform_vector3((p[j as usize] - p[i as usize]).cross(p[l as usize] - p[i as usize]))
+            .normalize_or_zero();
+        image.normal[k] = if n.dot(cam - a.point) < 0.0 { -n } else { n };
+    }
+}
+
+/// Whether `position` lies in the view space (with a relative slack for
+/// rounding); `None` when the scene has none.
+pub fn inside_view_space(space: &ViewSpace, position: Vec3) -> bool {
+    let slack = 1e-4;
+    match *space {
+        ViewSpace::Segment { a, b } => {
+            let ab = b - a;
+            let s = ((position - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+            position.distance(a + ab * s) <= slack * ab.length().max(1e-12)
+        }
+        ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max } => {
+            let pad = (max - min).max_element() * slack;
+            position.cmpge(min - pad).all() && position.cmple(max + pad).all()
+        }
+    }
+}
+
+/// The warning for a camera outside the view space, if it is.
+pub fn view_space_warning(scene: &Scene, what: &str, position: Vec3) -> Option<String> {
+    let space = scene.view_space.as_ref()?;
+    (!inside_view_space(space, position)).then(|| {
+        format!(
+            "warning: {what} at {position} is outside the scene's view space; \
+             expect holes and stretched surfaces where the bases saw too little"
+        )
+    })
+}
+
+/// Refuses a bake whose images are not base images this synthesis reads.
+pub fn check_bake(bake: &Bake) -> Result<()> {
+    if bake.manifest.plan.views.is_empty() {
+        bail!("{}: the bake's plan has no views", bake.dir.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,209 @@
+//! `rangewalk walk`: every frame of a walk path synthesized from a bake,
+//! written as range images and previews with an animated preview of the
+//! whole walk and a summary of its speed, memory and holes.
+
+use std::fs;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, ensure, Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use super::{view_space_warning, FrameStats, Options, Synthesizer};
+use crate::image;
+
+/// What a walk writes and how.
+#[derive(Clone, Debug)]
+pub struct WalkSettings {
+    pub path: String,
+    pub width: u32,
+    pub height: u32,
+    /// Frames per second of scene time; `None`: the scene's.
+    pub fps: Option<f32>,
+    pub options: Options,
+    pub exposure: f32,
+}
+
+/// What a walk did.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct WalkSummary {
+    pub path: String,
+    pub frames: usize,
+    pub times: Vec<f32>,
+    pub frame_seconds: Vec<f64>,
+    pub holes: Vec<usize>,
+    /// Wall time of synthesis alone (base loading excluded) and of the
+    /// whole walk (loading and writing included).
+    pub synthesis_seconds: f64,
+    pub load_seconds: f64,
+    pub total_seconds: f64,
+    /// Frames per second of synthesis, base loading excluded.
+    pub frames_per_second: f64,
+    pub base_loads: usize,
+    pub bytes_per_base_pixel: usize,
+    /// Peak resident memory of the process (bytes), where the system says.
+    pub peak_resident_bytes: Option<u64>,
+    pub warnings: Vec<String>,
+    pub out: PathBuf,
+}
+
+/// Frame times of a path at `fps`: from its first key to its last.
+pub fn frame_times(span: (f32, f32), fps: f32) -> Vec<f32> {
+    let n = ((span.1 - span.0) * fps).round().max(0.0) as usize + 1;
+    (0..n)
+        .map(|i| (span.0 + i as f32 / fps).min(span.1))
+        .collect()
+}
+
+/// Synthesizes every frame of the path into `out` (written as
+/// `<out>.partial` and renamed when complete).
+pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Result<WalkSummary> {
+    let scene = synth.scene;
+    let path = scene.path(&settings.path)?.clone();
+    let fps = settings.fps.unwrap_or(scene.animation.fps);
+    ensure!(
+        fps.is_finite() && fps > 0.0,
+        "--fps {fps} must be a positive number"
+    );
+    let times = frame_times(path.span(), fps);
+    let mut warnings = Vec::new();
+    for k in &path.keys {
+        if let Some(w) = view_space_warning(
+            scene,
+            &format!("path `{}` key t = {}", path.name, k.time),
+            k.position,
+        ) {
+            eprintln!("{w}");
+            warnings.push(w);
+        }
+    }
+    let staging = staging_dir(out)?;
+    let bar = ProgressBar::new(times.len() as u64).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {elapsed} ({eta} left) {msg}")
+            .expect("progress template is valid"),
+    );
+    let start = Instant::now();
+    let mut stats: Vec<FrameStats> = Vec::with_capacity(times.len());
+    let mut previews: Vec<Vec<u8>> = Vec::with_capacity(times.len());
+    for (i, &t) in times.iter().enumerate() {
+        let desc = path.at(t);
+        let camera = desc
+            .perspective(settings.width, settings.height)
+            .with_context(|| format!("path `{}` at t = {t}", path.name))?;
+        let (frame, s) = synth
+            .frame(&camera, t, &settings.options)
+            .with_context(|| format!("frame {i} (t = {t})"))?;
+        let name = format!("frame-{i:04}");
+        image::write_exr(staging.join(format!("{name}.exr")), &frame)?;
+        image::write_png_preview(
+            staging.join(format!("{name}.png")),
+            frame.width,
+            frame.height,
+            &frame.radiance,
+            settings.exposure,
+        )?;
+        previews.push(image::tonemap_srgb8(&frame.radiance, settings.exposure));
+        bar.set_message(format!(
+            "{:.1} ms/frame",
+            1e3 * (s.seconds - s.load_seconds)
+        ));
+        bar.inc(1);
+        stats.push(s);
+    }
+    bar.finish_and_clear();
+    write_apng(
+        &staging.join("walk.png"),
+        settings.width,
+        settings.height,
+        fps,
+        &previews,
+    )?;
+    let synthesis_seconds: f64 = stats.iter().map(|s| s.seconds - s.load_seconds).sum();
+    let load_seconds: f64 = stats.iter().map(|s| s.load_seconds).sum();
+    let mut summary = WalkSummary {
+        path: path.name.clone(),
+        frames: times.len(),
+        frame_seconds: stats.iter().map(|s| s.seconds - s.load_seconds).collect(),
+        holes: stats.iter().map(|s| s.holes).collect(),
+        times,
+        synthesis_seconds,
+        load_seconds,
+        total_seconds: start.elapsed().as_secs_f64(),
+        frames_per_second: stats.len() as f64 / synthesis_seconds.max(1e-9),
+        base_loads: synth.cache().loads,
+        bytes_per_base_pixel: super::BYTES_PER_PIXEL,
+        peak_resident_bytes: peak_resident_bytes(),
+        warnings,
+        out: out.to_path_buf(),
+    };
+    let text = serde_json::to_string_pretty(&summary).context("encoding the walk summary")?;
+    fs::write(staging.join("summary.json"), text)
+        .with_context(|| format!("writing {}", staging.join("summary.json").display()))?;
+    if out.exists() {
+        fs::remove_dir_all(out).with_context(|| format!("replacing {}", out.display()))?;
+    }
+    fs::rename(&staging, out)
+        .with_context(|| format!("renaming {} to {}", staging.display(), out.display()))?;
+    summary.out = out.to_path_buf();
+    Ok(summary)
+}
+
+/// A fresh `<out>.partial` beside `out`.
+fn staging_dir(out: &Path) -> Result<PathBuf> {
+    let name = out
+        .file_name()
+        .with_context(|| format!("{}: names no folder", out.display()))?;
+    let mut partial = name.to_os_string();
+    partial.push(".partial");
+    let staging = out.with_file_name(partial);
+    if staging.exists() {
+        fs::remove_dir_all(&staging)
+            .with_context(|| format!("removing an earlier {}", staging.display()))?;
+    }
+    if out.exists() && !out.is_dir() {
+        bail!("{} exists and is not a folder", out.display());
+    }
+    fs::create_dir_all(&staging).with_context(|| format!("creating {}", staging.display()))?;
+    Ok(staging)
+}
+
+/// An animated PNG of the previews, playing at `fps`.
+fn write_apng(path: &Path, width: u32, height: u32, fps: f32, frames: &[Vec<u8>]) -> Result<()> {
+    let write = || -> Result<()> {
+        let file = fs::File::create(path)?;
+        let mut enc = png::Encoder::new(BufWriter::new(file), width, height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_animated(frames.len().max(1) as u32, 0)?;
+        // Delay as a fraction: 1000 / (fps * 1000) s.
+        enc.set_frame_delay(1000, (fps * 1000.0).round().clamp(1.0, 65535.0) as u16)?;
+        let mut writer = enc.write_header()?;
+        for f in frames {
+            writer.write_image_data(f)?;
+        }
+        writer.finish()?;
+        Ok(())
+    };
+    write().with_context(|| format!("writing {}", path.display()))
+}
+
+/// The process's peak resident set size (Linux: `VmHWM`).
+pub fn peak_resident_bytes() -> Option<u64> {
+    let status = fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_times_cover_the_path_at_the_rate() {
+        assert_eq!(frame_times((0.0, 1.0), 4.0), [0.0, 0.25, 0.5, 0.75, 1.0]);
+        assert_eq!(frame_times((2.0, 2.0), 30.0), [2.0]);
+        assert_eq!(frame_times((0.0, 1.0), 30.0).len(), 31);
+    }
+}

@@ -1,0 +1,491 @@
+//! Forward projection of base pixels into a frame with a z-buffer, as
+//! Radiance's `pinterp` does it: a sample replaces what a pixel holds when
+//! it is nearer by more than the relative tolerance, joins it when within
+//! the tolerance (weighted by how close the base ray is to the frame's ray)
+//! or, with `Blend::Nearest`, loses to the sample already there.
+//!
+//! The frame is cut into bands of rows, one rayon task each; every task
+//! goes through the tiles of every pass whose projected bounds reach its
+//! rows, in pass order, so the result does not depend on the thread count.
+
+use glam::{Affine3A, Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::base::{Base, Bounds, Tile, SKY, TILE};
+use crate::camera::{Camera, Projection};
+
+/// Depth of a pixel that sees nothing: farther than any surface.
+pub const SKY_Z: f32 = 1e30;
+/// Largest weight of a sample, for rays that coincide (pinterp's cap).
+const MAX_WEIGHT: f32 = 1000.0;
+/// Longest side (in frame pixels) a splat may stretch to; beyond it a
+/// sample covers one pixel.
+const MAX_SPLAT: f32 = 64.0;
+
+/// What a frame pixel has gathered.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Accum {
+    /// Distance from the frame's camera; 0 where nothing arrived.
+    pub z: f32,
+    /// Sum of the samples' weights and of their weighted values.
+    pub w: f32,
+    pub radiance: Vec3,
+    pub diffuse_direct: Vec3,
+    /// Weighted sum of the samples' time fractions (linear blending).
+    pub alpha: f32,
+    /// The heaviest sample's weight, world point (at the frame's time),
+    /// object and primitive: the surface the pixel shows.
+    pub best: f32,
+    pub point: Vec3,
+    pub object: u32,
+    pub primitive: u32,
+    /// How far (in pixels) background fill carried the value; 0 for a
+    /// projected sample.
+    pub reach: u16,
+}
+
+impl Accum {
+    pub fn is_empty(&self) -> bool {
+        self.z == 0.0
+    }
+}
+
+/// One base image projected at one weight.
+pub struct Pass<'a> {
+    pub base: &'a Base,
+    /// Per object: the motion from the base's time to the frame's,
+    /// `M(t) · M(t_i)⁻¹`, for objects that move (motion compensation).
+    pub moves: Vec<Option<Affine3A>>,
+    /// Weight of every sample of this pass (closeness in time).
+    pub weight: f32,
+    /// The time fraction this pass stands for (linear blending).
+    pub alpha: f32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Blend {
+    /// The first base (nearest the frame's camera) wins among samples
+    /// within the tolerance (pinterp `-q`).
+    Nearest,
+    /// Samples within the tolerance are averaged, weighted by 1/sin of the
+    /// angle between the base's ray and the frame's (pinterp `-a`).
+    Average,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct WarpSettings {
+    pub tolerance: f32,
+    pub splat: bool,
+    pub blend: Blend,
+}
+
+/// The frame's camera with what projecting into it needs precomputed.
+pub struct Target {
+    pub camera: Camera,
+    /// Pixels per unit of `x/z` and `y/z` (pinhole frames).
+    focal: Option<f32>,
+}
+
+impl Target {
+    pub fn new(camera: Camera) -> Self {
+        let focal = match camera.projection {
+            Projection::Perspective { vfov_deg } => {
+                Some(0.5 * camera.height as f32 / (vfov_deg.to_radians() * 0.5).tan())
+            }
+            _ => None,
+        };
+        Self { camera, focal }
+    }
+
+    fn local(&self, d: Vec3) -> Vec3 {
+        let c = &self.camera;
+        Vec3::new(d.dot(c.right), d.dot(c.up), d.dot(c.forward))
+    }
+
+    /// Continuous pixel position of a world point (not clipped to the
+    /// image, so that splats can cross its edge) and its distance.
+    #[inline]
+    pub fn point(&self, p: Vec3) -> Option<(Vec2, f32)> {
+        let d = p - self.camera.position;
+        match self.focal {
+            Some(f) => {
+                let l = self.local(d);
+                if l.z <= 0.0 {
+                    return None;
+                }
+                let inv = f / l.z;
+                Some((
+                    Vec2::new(
+                        0.5 * self.camera.width as f32 + l.x * inv,
+                        0.5 * self.camera.height as f32 - l.y * inv,
+                    ),
+                    d.length(),
+                ))
+            }
+            None => self.camera.project(p).map(|px| (px, d.length())),
+        }
+    }
+
+    /// Pixel position of a direction (a point at infinity).
+    #[inline]
+    pub fn direction(&self, d: Vec3) -> Option<Vec2> {
+        match self.focal {
+            Some(f) => {
+                let l = self.local(d);
+                if l.z <= 0.0 {
+                    return None;
+                }
+                let inv = f / l.z;
+                Some(Vec2::new(
+                    0.5 * self.camera.width as f32 + l.x * inv,
+                    0.5 * self.camera.height as f32 - l.y * inv,
+                ))
+            }
+            None => self.camera.project(self.camera.position + d * 1e20),
+        }
+    }
+
+    /// Rows a box of points may reach, or `None` where the frame cannot
+    /// see it. Only pinhole frames are culled.
+    fn rows(&self, b: &Bounds, directions: bool) -> Option<(u32, u32)> {
+        let h = self.camera.height;
+        let Some(f) = self.focal else {
+            return Some((0, h));
+        };
+        let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+        let mut behind = 0;
+        // Corners outside each side of the frustum (with a pixel to spare):
+        // a box with all eight outside one side is not seen.
+        let (ax, ay) = (
+            (0.5 * self.camera.width as f32 + 2.0) / f,
+            (0.5 * h as f32 + 2.0) / f,
+        );
+        let mut outside = [0; 4];
+        for c in b.corners() {
+            let l = if directions {
+                self.local(c)
+            } else {
+                self.local(c - self.camera.position)
+            };
+            outside[0] += (l.x > l.z * ax) as u32;
+            outside[1] += (l.x < -l.z * ax) as u32;
+            outside[2] += (l.y > l.z * ay) as u32;
+            outside[3] += (l.y < -l.z * ay) as u32;
+            if l.z <= 0.0 {
+                behind += 1;
+                continue;
+            }
+            let inv = f / l.z;
+            let q = Vec2::new(l.x * inv, -l.y * inv);
+            lo = lo.min(q);
+            hi = hi.max(q);
+        }
+        if behind == 8 || outside.contains(&8) {
+            return None;
+        }
+        if behind > 0 {
+            return Some((0, h));
+        }
+        let half = Vec2::new(self.camera.width as f32, h as f32) * 0.5;
+        let (lo, hi) = (lo + half - 1.0, hi + half + 1.0);
+        if hi.x < 0.0 || hi.y < 0.0 || lo.x > self.camera.width as f32 || lo.y > h as f32 {
+            return None;
+        }
+        Some((
+            lo.y.max(0.0) as u32,
+            (hi.y.ceil().max(0.0) as u32 + 1).min(h),
+        ))
+    }
+
+    /// Rows a tile of a pass may reach (its points moved to the frame's time).
+    fn tile_rows(&self, tile: &Tile, moves: &[Option<Affine3A>]) -> Option<(u32, u32)> {
+        let mut range: Option<(u32, u32)> = None;
+        let mut add = |r: Option<(u32, u32)>| {
+            if let Some((a, b)) = r {
+                range = Some(range.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
+            }
+        };
+        if let Some(b) = &tile.fixed {
+            add(self.rows(b, false));
+        }
+        if let Some(b) = &tile.sky {
+            add(self.rows(b, true));
+        }
+        for (o, b) in &tile.moving {
+            match moves.get(*o as usize).copied().flatten() {
+                Some(m) => {
+                    let mut moved = Bounds {
+                        lo: Vec3::splat(f32::INFINITY),
+                        hi: Vec3::splat(f32::NEG_INFINITY),
+                    };
+                    for c in b.corners() {
+                        let p = m.transform_point3(c);
+                        moved.lo = moved.lo.min(p);
+                        moved.hi = moved.hi.max(p);
+                    }
+                    add(self.rows(&moved, false));
+                }
+                None => add(self.rows(b, false)),
+            }
+        }
+        range
+    }
+}
+
+/// A projected base pixel.
+#[derive(Clone, Copy)]
+struct Projected {
+    px: Vec2,
+    z: f32,
+    /// The world point at the frame's time (a direction for sky).
+    point: Vec3,
+    sky: bool,
+    object: u32,
+    primitive: u32,
+}
+
+/// Projects every pass into `buffer` (`width * height`, row-major).
+pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &mut [Accum]) {
+    let (w, h) = (target.camera.width, target.camera.height);
+    debug_assert_eq!(buffer.len(), (w * h) as usize);
+    let band = (h / 16).max(16);
+    let bands = h.div_ceil(band) as usize;
+    // Every (pass, tile) that may reach each band, in pass order.
+    let mut work: Vec<Vec<(u32, u32)>> = vec![Vec::new(); bands];
+    let lists: Vec<Vec<(u32, u32, u32, u32)>> = passes
+        .par_iter()
+        .enumerate()
+        .map(|(i, pass)| {
+            pass.base
+                .tiles
+                .iter()
+                .enumerate()
+                .filter_map(|(t, tile)| {
+                    let (a, b) = target.tile_rows(tile, &pass.moves)?;
+                    (b > a).then_some((i as u32, t as u32, a, b))
+                })
+                .collect()
+        })
+        .collect();
+    for &(i, t, a, b) in lists.iter().flatten() {
+        for k in (a / band) as usize..=(((b - 1) / band) as usize).min(bands - 1) {
+            work[k].push((i, t));
+        }
+    }
+    buffer
+        .par_chunks_mut((band * w) as usize)
+        .zip(work.par_iter())
+        .enumerate()
+        .for_each(|(k, (rows, items))| {
+            let y0 = k as u32 * band;
+            let mut scratch = Vec::with_capacity(((TILE + 1) * (TILE + 1)) as usize);
+            for &(i, t) in items {
+                let pass = &passes[i as usize];
+                let tile = &pass.base.tiles[t as usize];
+                splat_tile(target, pass, tile, settings, rows, y0, &mut scratch);
+            }
+        });
+}
+
+/// Projects the tile's pixels (and the row and column after it) and
+/// deposits each pixel's sample in the rows `y0..` held by `rows`.
+fn splat_tile(
+    target: &Target,
+    pass: &Pass,
+    tile: &Tile,
+    settings: &WarpSettings,
+    rows: &mut [Accum],
+    y0: u32,
+    scratch: &mut Vec<Option<Projected>>,
+) {
+    let base = pass.base;
+    let (bw, bh) = (base.width(), base.height());
+    let fw = target.camera.width;
+    let band_rows = rows.len() as u32 / fw;
+    let y1 = y0 + band_rows;
+    let x_end = (tile.x0 + TILE + 1).min(bw);
+    let y_end = (tile.y0 + TILE + 1).min(bh);
+    let sw = x_end - tile.x0;
+    scratch.clear();
+    for y in tile.y0..y_end {
+        for x in tile.x0..x_end {
+            let k = (y * bw + x) as usize;
+            let p = base.points[k];
+            let o = base.object[k];
+            let projected = if o == SKY {
+                if p == Vec3::ZERO {
+                    None
+                } else {
+                    target.direction(p).map(|px| Projected {
+                        px,
+                        z: SKY_Z,
+                        point: p,
+                        sky: true,
+                        object: o,
+                        primitive: SKY,
+                    })
+                }
+            } else {
+                let q = match pass.moves.get(o as usize).copied().flatten() {
+                    Some(m) => m.transform_point3(p),
+                    None => p,
+                };
+                target.point(q).map(|(px, z)| Projected {
+                    px,
+                    z,
+                    point: q,
+                    sky: false,
+                    object: o,
+                    primitive: base.primitive[k],
+                })
+            };
+            scratch.push(projected);
+        }
+    }
+    let eps = settings.tolerance;
+    // Neighbours on one triangle are one plane, however steeply the base
+    // saw it; others must agree in depth (pinterp's test).
+    let agrees = |a: &Projected, b: &Projected| {
+        a.sky == b.sky
+            && (a.sky
+                || (a.object == b.object && a.primitive == b.primitive)
+                || (a.z - b.z).abs() <= 2.0 * eps * a.z)
+    };
+    let cam = target.camera.position;
+    for y in tile.y0..(tile.y0 + TILE).min(bh) {
+        for x in tile.x0..(tile.x0 + TILE).min(bw) {
+            let li = ((y - tile.y0) * sw + (x - tile.x0)) as usize;
+            let Some(s) = scratch[li] else { continue };
+            let k = (y * bw + x) as usize;
+            // Weight: how close the base's ray is to the frame's ray.
+            let base_dir = if s.sky {
+                s.point
+            } else {
+                (base.points[k] - base.camera.position).normalize_or_zero()
+            };
+            let frame_dir = if s.sky {
+                s.point
+            } else {
+                (s.point - cam) / s.z
+            };
+            let sin = base_dir.cross(frame_dir).length();
+            let weight = pass.weight * (1.0 / sin).min(MAX_WEIGHT);
+            let sample = Sample {
+                z: s.z,
+                weight,
+                radiance: base.radiance_at(k),
+                diffuse_direct: base.diffuse_direct_at(k),
+                alpha: pass.alpha,
+                point: s.point,
+                object: base.object[k],
+                primitive: base.primitive[k],
+            };
+            let neighbour = |dx: u32, dy: u32| -> Option<Vec2> {
+                if x + dx >= x_end || y + dy >= y_end {
+                    return None;
+                }
+                let n = scratch[li + (dy * sw + dx) as usize]?;
+                agrees(&s, &n).then_some(n.px - s.px)
+            };
+            let mut deposit = |px: i64, py: i64| {
+                if px >= 0 && py >= y0 as i64 && px < fw as i64 && py < y1 as i64 {
+                    let a = &mut rows[((py as u32 - y0) * fw + px as u32) as usize];
+                    sample.deposit(a, eps, settings.blend);
+                }
+            };
+            let single = |deposit: &mut dyn FnMut(i64, i64)| {
+                deposit(s.px.x.floor() as i64, s.px.y.floor() as i64);
+            };
+            if !settings.splat {
+                single(&mut deposit);
+                continue;
+            }
+            let short = |e: Vec2| e.abs().max_element() <= MAX_SPLAT;
+            // The splat is centred on the pixel's projection, so that a
+            // base pixel projected into its own camera covers exactly its
+            // own pixel; a side without an agreeing neighbour is one pixel.
+            let e1 = neighbour(1, 0).filter(|e| short(*e)).unwrap_or(Vec2::X);
+            let e2 = neighbour(0, 1).filter(|e| short(*e)).unwrap_or(Vec2::Y);
+            let origin = s.px - 0.5 * (e1 + e2);
+            let det = e1.perp_dot(e2);
+            if det.abs() < 1e-6 {
+                single(&mut deposit);
+                continue;
+            }
+            let corners = [origin, origin + e1, origin + e2, origin + e1 + e2];
+            let lo = corners
+                .iter()
+                .fold(Vec2::splat(f32::INFINITY), |m, c| m.min(*c));
+            let hi = corners
+                .iter()
+                .fold(Vec2::splat(f32::NEG_INFINITY), |m, c| m.max(*c));
+            let (ya, yb) = (
+                ((lo.y - 0.5).ceil() as i64).max(y0 as i64),
+                ((hi.y - 0.5).floor() as i64).min(y1 as i64 - 1),
+            );
+            let (xa, xb) = (
+                ((lo.x - 0.5).ceil() as i64).max(0),
+                ((hi.x - 0.5).floor() as i64).min(fw as i64 - 1),
+            );
+            let inv = 1.0 / det;
+            for py in ya..=yb {
+                for px in xa..=xb {
+                    let c = Vec2::new(px as f32 + 0.5, py as f32 + 0.5) - origin;
+                    // Parallelogram coordinates, half-open so that each
+                    // pixel centre belongs to one splat of a surface.
+                    let a = c.perp_dot(e2) * inv;
+                    let b = e1.perp_dot(c) * inv;
+                    if (0.0..1.0).contains(&a) && (0.0..1.0).contains(&b) {
+                        deposit(px, py);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// One base pixel's contribution.
+struct Sample {
+    z: f32,
+    weight: f32,
+    radiance: Vec3,
+    diffuse_direct: Vec3,
+    alpha: f32,
+    point: Vec3,
+    object: u32,
+    primitive: u32,
+}
+
+impl Sample {
+    #[inline]
+    fn deposit(&self, a: &mut Accum, eps: f32, blend: Blend) {
+        let w = self.weight;
+        if a.is_empty() || self.z < a.z * (1.0 - eps) {
+            *a = Accum {
+                z: self.z,
+                w,
+                radiance: self.radiance * w,
+                diffuse_direct: self.diffuse_direct * w,
+                alpha: self.alpha * w,
+                best: w,
+                point: self.point,
+                object: self.object,
+                primitive: self.primitive,
+                reach: 0,
+            };
+        } else if self.z <= a.z * (1.0 + eps) && blend == Blend::Average {
+            a.w += w;
+            a.radiance += self.radiance * w;
+            a.diffuse_direct += self.diffuse_direct * w;
+            a.alpha += self.alpha * w;
+            a.z = a.z.min(self.z);
+            if w > a.best {
+                a.best = w;
+                a.point = self.point;
+                a.object = self.object;
+                a.primitive = self.primitive;
+            }
+        }
+    }
+}

@@ -1,17 +1,24 @@
 #!/usr/bin/env python3
-"""Writes soda-shop.obj, wallpaper.png and ball.png: an old-fashioned soda
-shop with a counter, stools, booths, tables, a soda fountain, shelves of
-bottles and glasses, a mirror, pendant lamps and a ceiling fan.
+"""Writes soda-shop.obj and its textures (wallpaper.png, beadboard.png,
+tin.png, ball.png): an old-fashioned soda shop with a counter, stools,
+booths, tables, a soda fountain, shelves of bottles and glasses, a mirror,
+pendant lamps and a ceiling fan.
 
 Deterministic (fixed seed, fixed number formatting, fixed zlib level);
 python3 standard library only. Units: metres, y up. The room spans x 0..8,
 y 0..3.2, z 0..6; the shop windows are cut into the wall z = 0 and the sun
-shines in through them; outside them lie a pavement and, 4 m away, the
-facade of the house opposite. The counter runs along x in front of the back bar
-on the wall z = 6; the booths stand against the wall x = 8.
+shines in through them. There is nothing outside (no ground, no sky), as in
+the studio: exterior geometry would also enlarge the bounding box by which
+the radiosity simplification sizes its patches. The counter runs along x in
+front of the back bar on the wall z = 6; the booths stand against the wall
+x = 8.
 
-Groups with texture coordinates (`wallpaper`, `ball`) write one `vt` per
-`v` and faces as `f v/vt ...`, so that every vertex of those groups has one.
+Groups with texture coordinates (wallpaper, wainscot, ceiling, ball) write
+one `vt` per `v` and their faces as `f v/vt ...`, so that every vertex of
+those groups has one. No two faces coincide (a box loses the faces it
+stands on or that touch a wall): coincident faces made the radiosity solver
+fail to converge, and overlays on large surfaces (raised panels, ceiling
+bosses) hid them from its shadow rays, so detail there is in the textures.
 
 The moving objects are modelled at their pose at t = 0; scene.toml moves
 them (sliding_glass, spin_seat, fan_blades, ball) about the pivots printed
@@ -754,21 +761,6 @@ def main():
     o.box((7.12, 0.55, 5.33), (7.78, 0.95, 5.35), 4, ("+z",))
     o.tube([(7.45 + 0.36 * math.cos(a), 1.1 + 0.36 * math.sin(a), 5.33)
             for a in [math.pi * i / 24 for i in range(25)]], 0.015, 8)
-
-    # Outside the windows: the sunlit pavement and, across a narrow street,
-    # the facade of the house opposite (its face to the shop is in shadow).
-    # Kept small: the radiosity simplification sizes its patches by the
-    # scene's bounding box. 3.4 m high, low enough for the sun (elevation
-    # 33 degrees) to pass over it into the windows.
-    o.group("street")
-    o.grid((-1.0, 0.0, -REVEAL), (0, 0, -(4.0 - REVEAL)), (10.0, 0, 0), 6, 20)
-    o.box((-1.0, 0.0, -1.6), (9.0, 0.12, -1.4), 4)  # kerb
-    o.group("facade")
-    o.grid((-1.0, 0.0, -4.0), (10.0, 0, 0), (0, 3.4, 0), 20, 7)
-    o.group("facade_windows")
-    for i in range(4):
-        x0 = -0.6 + 2.6 * i
-        o.box((x0, 1.0, -4.0), (x0 + 1.3, 2.6, -3.94), 2, ("-z",))
 
     # Pendant lamps over the counter.
     shades, glows = [], []

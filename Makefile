@@ -1,5 +1,5 @@
 # The two entry points of a fresh Debian 12 machine that has Rust:
-#   make demo  - install what is missing, build, render the animated Cornell box
+#   make demo  - install what is missing, build, bake and walk the animated Cornell box
 #   make test  - install what is missing, build, run every test (both variants)
 # Everything the project needs is installed from here, nothing by hand.
 
@@ -11,23 +11,30 @@ SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 DEB_PACKAGES := libembree-dev libopenimageio-dev libclang-dev pkg-config g++ python3 python3-venv fonts-dejavu-core
 PY_PACKAGES := mitsuba==3.9.1 flip-evaluator==1.7 numpy
 DEMO_SCENE := scenes/cornell-box/scene.toml
-DEMO_TIMES := 0 0.5 1
-DEMO_SIZE := 512x512
+DEMO_SIZE := 256x256
 DEMO_SPP := 512
+RW := target/release/rangewalk
 
 export RANGEWALK_PYTHON := $(abspath $(PYTHON))
 
 .PHONY: demo test deps debs venv build lint bench clean
 
+# The framework's main job on the animated Cornell box: plan and bake base
+# images, walk the scene's path from them, and check one synthesized frame
+# against a path-traced one.
 demo: deps build
-	@rm -rf out/demo && mkdir -p out/demo.partial
-	@set -o pipefail; for t in $(DEMO_TIMES); do \
-	  target/release/rangewalk render $(DEMO_SCENE) --time $$t --camera main --size $(DEMO_SIZE) \
-	    --spp $(DEMO_SPP) --out out/demo.partial/cornell-box-t$$t.exr \
-	    --preview out/demo.partial/cornell-box-t$$t.png || exit 1; \
-	done | tee out/demo.partial/summary.txt
+	@rm -rf out/demo out/demo.partial && mkdir -p out/demo.partial
+	@set -o pipefail; { \
+	  $(RW) bake $(DEMO_SCENE) --quality 0.6 --frame-size $(DEMO_SIZE) --spp 8 --out out/demo.partial/bake && \
+	  $(RW) walk out/demo.partial/bake --path walk --size $(DEMO_SIZE) --time-interp reshade --out out/demo.partial/walk && \
+	  $(RW) synth out/demo.partial/bake --camera main --time 0.5 --size $(DEMO_SIZE) --time-interp reshade \
+	    --out out/demo.partial/synth-main-t0.5.exr --preview out/demo.partial/synth-main-t0.5.png && \
+	  $(RW) render $(DEMO_SCENE) --camera main --time 0.5 --size $(DEMO_SIZE) --spp $(DEMO_SPP) \
+	    --out out/demo.partial/reference-main-t0.5.exr --preview out/demo.partial/reference-main-t0.5.png && \
+	  $(RW) compare out/demo.partial/reference-main-t0.5.exr out/demo.partial/synth-main-t0.5.exr; \
+	} 2>&1 | tee out/demo.partial/summary.txt
 	@mv out/demo.partial out/demo
-	@echo "demo written to out/demo/ (EXR range images, PNG previews, summary.txt)"
+	@echo "demo written to out/demo/: bake/ (base images), walk/ (frames, walk.png animation, summary.json), a synthesized and a path-traced frame, summary.txt"
 
 test: deps build lint
 	$(CARGO) test --release

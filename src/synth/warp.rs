@@ -142,7 +142,12 @@ impl Target {
                     0.5 * self.camera.height as f32 - l.y * inv,
                 ))
             }
-            None => self.camera.project(self.camera.position + d * 1e20),
+            None => {
+                // Far enough that the position's rounding does not turn
+                // the direction, near enough that its square stays finite.
+                let far = 1e3 * (1.0 + self.camera.position.abs().max_element());
+                self.camera.project(self.camera.position + d * far)
+            }
         }
     }
 
@@ -269,8 +274,9 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
         })
         .collect();
     for &(i, t, a, b) in lists.iter().flatten() {
-        for k in (a / band) as usize..=(((b - 1) / band) as usize).min(bands - 1) {
-            work[k].push((i, t));
+        let (first, last) = ((a / band) as usize, ((b - 1) / band) as usize);
+        for items in work.iter_mut().take(last + 1).skip(first) {
+            items.push((i, t));
         }
     }
     buffer
@@ -394,11 +400,12 @@ fn splat_tile(
                     sample.deposit(a, eps, settings.blend);
                 }
             };
-            let single = |deposit: &mut dyn FnMut(i64, i64)| {
-                deposit(s.px.x.floor() as i64, s.px.y.floor() as i64);
-            };
+            // Every sample lands on the pixel under it, so that where base
+            // pixels are finer than the frame's, each frame pixel averages
+            // all of those it covers.
+            let (fx, fy) = (s.px.x.floor() as i64, s.px.y.floor() as i64);
+            deposit(fx, fy);
             if !settings.splat {
-                single(&mut deposit);
                 continue;
             }
             let short = |e: Vec2| e.abs().max_element() <= MAX_SPLAT;
@@ -410,7 +417,6 @@ fn splat_tile(
             let origin = s.px - 0.5 * (e1 + e2);
             let det = e1.perp_dot(e2);
             if det.abs() < 1e-6 {
-                single(&mut deposit);
                 continue;
             }
             let corners = [origin, origin + e1, origin + e2, origin + e1 + e2];
@@ -433,10 +439,11 @@ fn splat_tile(
                 for px in xa..=xb {
                     let c = Vec2::new(px as f32 + 0.5, py as f32 + 0.5) - origin;
                     // Parallelogram coordinates, half-open so that each
-                    // pixel centre belongs to one splat of a surface.
+                    // pixel centre belongs to one splat of a surface; the
+                    // pixel under the sample has it already.
                     let a = c.perp_dot(e2) * inv;
                     let b = e1.perp_dot(c) * inv;
-                    if (0.0..1.0).contains(&a) && (0.0..1.0).contains(&b) {
+                    if (0.0..1.0).contains(&a) && (0.0..1.0).contains(&b) && (px, py) != (fx, fy) {
                         deposit(px, py);
                     }
                 }

@@ -293,18 +293,30 @@ impl WalkPath {
 impl Scene {
     /// The walk path named `name`.
     pub fn path(&self, name: &str) -> Result<&WalkPath> {
-        self.paths.iter().find(|p| p.name == name).ok_or_else(|| {
-            let known: Vec<&str> = self.paths.iter().map(|p| p.name.as_str()).collect();
-            anyhow!(
-                "{}: no path named `{name}` (paths: {})",
-                self.source.display(),
-                if known.is_empty() {
-                    "none".to_string()
-                } else {
-                    known.join(", ")
-                }
-            )
-        })
+        let names = self.paths.iter().map(|p| p.name.as_str());
+        self.paths
+            .iter()
+            .find(|p| p.name == name)
+            .ok_or_else(|| self.unknown("path", name, names))
+    }
+
+    /// The error for a name the scene does not define, listing those it does.
+    fn unknown<'a>(
+        &self,
+        what: &str,
+        name: &str,
+        known: impl Iterator<Item = &'a str>,
+    ) -> anyhow::Error {
+        let known: Vec<&str> = known.collect();
+        anyhow!(
+            "{}: no {what} named `{name}` ({what}s: {})",
+            self.source.display(),
+            if known.is_empty() {
+                "none".to_string()
+            } else {
+                known.join(", ")
+            }
+        )
     }
 
     /// Reads and validates `scene.toml` and the meshes it names.
@@ -329,18 +341,11 @@ impl Scene {
     }
 
     pub fn camera(&self, name: &str) -> Result<&CameraDesc> {
-        self.cameras.iter().find(|c| c.name == name).ok_or_else(|| {
-            let known: Vec<&str> = self.cameras.iter().map(|c| c.name.as_str()).collect();
-            anyhow!(
-                "{}: no camera named `{name}` (cameras: {})",
-                self.source.display(),
-                if known.is_empty() {
-                    "none".to_string()
-                } else {
-                    known.join(", ")
-                }
-            )
-        })
+        let names = self.cameras.iter().map(|c| c.name.as_str());
+        self.cameras
+            .iter()
+            .find(|c| c.name == name)
+            .ok_or_else(|| self.unknown("camera", name, names))
     }
 
     pub fn material_of(&self, object: u32) -> &Material {

@@ -103,45 +103,37 @@ impl Target {
         Vec3::new(d.dot(c.right), d.dot(c.up), d.dot(c.forward))
     }
 
+    /// Pinhole pixel position of a camera-space vector, `None` behind.
+    #[inline]
+    fn pinhole(&self, f: f32, d: Vec3) -> Option<Vec2> {
+        let l = self.local(d);
+        if l.z <= 0.0 {
+            return None;
+        }
+        let inv = f / l.z;
+        Some(Vec2::new(
+            0.5 * self.camera.width as f32 + l.x * inv,
+            0.5 * self.camera.height as f32 - l.y * inv,
+        ))
+    }
+
     /// Continuous pixel position of a world point (not clipped to the
     /// image, so that splats can cross its edge) and its distance.
     #[inline]
     pub fn point(&self, p: Vec3) -> Option<(Vec2, f32)> {
         let d = p - self.camera.position;
         match self.focal {
-            Some(f) => {
-                let l = self.local(d);
-                if l.z <= 0.0 {
-                    return None;
-                }
-                let inv = f / l.z;
-                Some((
-                    Vec2::new(
-                        0.5 * self.camera.width as f32 + l.x * inv,
-                        0.5 * self.camera.height as f32 - l.y * inv,
-                    ),
-                    d.length(),
-                ))
-            }
-            None => self.camera.project(p).map(|px| (px, d.length())),
+            Some(f) => self.pinhole(f, d),
+            None => self.camera.project(p),
         }
+        .map(|px| (px, d.length()))
     }
 
     /// Pixel position of a direction (a point at infinity).
     #[inline]
     pub fn direction(&self, d: Vec3) -> Option<Vec2> {
         match self.focal {
-            Some(f) => {
-                let l = self.local(d);
-                if l.z <= 0.0 {
-                    return None;
-                }
-                let inv = f / l.z;
-                Some(Vec2::new(
-                    0.5 * self.camera.width as f32 + l.x * inv,
-                    0.5 * self.camera.height as f32 - l.y * inv,
-                ))
-            }
+            Some(f) => self.pinhole(f, d),
             None => {
                 // Far enough that the position's rounding does not turn
                 // the direction, near enough that its square stays finite.

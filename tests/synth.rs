@@ -230,10 +230,10 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
     assert_eq!(stats.holes, 0, "fill both leaves no hole");
     let all = metrics::compare(&both.radiance, &reference.radiance, None).unwrap();
     // Inside surfaces (pixels whose neighbours show the same object): the
-    // shading carried over from the bases. Edges are resampled, and the
-    // emitter's edges, 20 times brighter than the walls, sit about a third
-    // of a frame pixel from where the reference has them (an open defect);
-    // the whole frame's bias bounds them.
+    // shading carried over from the bases, within the noise of their 16
+    // samples per pixel. Edges are resampled from one or two base pixels
+    // each, and the emitter's, 20 times brighter than the walls, then
+    // dominate a whole frame's LRMS; the whole frame's bias bounds them.
     let (w, h) = (camera.width as i64, camera.height as i64);
     let id =
         |x: i64, y: i64| reference.object_id[(y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize];

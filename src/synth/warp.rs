@@ -370,7 +370,6 @@ fn splat_tile(
             let sin = base_dir.cross(frame_dir).length();
             let weight = pass.weight * (1.0 / sin).min(MAX_WEIGHT);
             let sample = Sample {
-                z: s.z,
                 weight,
                 radiance: base.radiance_at(k),
                 diffuse_direct: base.diffuse_direct_at(k),
@@ -379,17 +378,40 @@ fn splat_tile(
                 object: base.object[k],
                 primitive: base.primitive[k],
             };
-            let neighbour = |dx: u32, dy: u32| -> Option<Vec2> {
+            // Offset and depth change to an agreeing neighbour.
+            let neighbour = |dx: u32, dy: u32| -> Option<(Vec2, f32)> {
                 if x + dx >= x_end || y + dy >= y_end {
                     return None;
                 }
                 let n = scratch[li + (dy * sw + dx) as usize]?;
-                agrees(&s, &n).then_some(n.px - s.px)
+                agrees(&s, &n).then_some((n.px - s.px, n.z - s.z))
+            };
+            let (n1, n2) = (neighbour(1, 0), neighbour(0, 1));
+            // The depth gradient across the frame, so that the z-test
+            // compares depths at the pixel centre: a surface seen at a
+            // grazing angle changes depth by more than the tolerance
+            // within one pixel, and depths taken where the samples fall
+            // would let the nearer part of every pixel win.
+            let grad = match (n1, n2) {
+                (Some((e1, d1)), Some((e2, d2))) if e1.perp_dot(e2).abs() > 1e-6 => {
+                    let det = e1.perp_dot(e2);
+                    Vec2::new(d1 * e2.y - d2 * e1.y, e1.x * d2 - e2.x * d1) / det
+                }
+                (Some((e, d)), _) | (None, Some((e, d))) if e.length_squared() > 1e-12 => {
+                    e * (d / e.length_squared())
+                }
+                _ => Vec2::ZERO,
             };
             let mut deposit = |px: i64, py: i64| {
                 if px >= 0 && py >= y0 as i64 && px < fw as i64 && py < y1 as i64 {
                     let a = &mut rows[((py as u32 - y0) * fw + px as u32) as usize];
-                    sample.deposit(a, eps, settings.blend);
+                    let centre = Vec2::new(px as f32 + 0.5, py as f32 + 0.5);
+                    let z = if s.sky {
+                        s.z
+                    } else {
+                        (s.z + grad.dot(centre - s.px)).clamp(0.5 * s.z, 2.0 * s.z)
+                    };
+                    sample.deposit(a, z, eps, settings.blend);
                 }
             };
             // Every sample lands on the pixel under it, so that where base
@@ -404,8 +426,8 @@ fn splat_tile(
             // The splat is centred on the pixel's projection, so that a
             // base pixel projected into its own camera covers exactly its
             // own pixel; a side without an agreeing neighbour is one pixel.
-            let e1 = neighbour(1, 0).filter(|e| short(*e)).unwrap_or(Vec2::X);
-            let e2 = neighbour(0, 1).filter(|e| short(*e)).unwrap_or(Vec2::Y);
+            let e1 = n1.map(|n| n.0).filter(|e| short(*e)).unwrap_or(Vec2::X);
+            let e2 = n2.map(|n| n.0).filter(|e| short(*e)).unwrap_or(Vec2::Y);
             let origin = s.px - 0.5 * (e1 + e2);
             let det = e1.perp_dot(e2);
             if det.abs() < 1e-6 {
@@ -446,7 +468,6 @@ fn splat_tile(
 
 /// One base pixel's contribution.
 struct Sample {
-    z: f32,
     weight: f32,
     radiance: Vec3,
     diffuse_direct: Vec3,
@@ -458,11 +479,11 @@ struct Sample {
 
 impl Sample {
     #[inline]
-    fn deposit(&self, a: &mut Accum, eps: f32, blend: Blend) {
+    fn deposit(&self, a: &mut Accum, z: f32, eps: f32, blend: Blend) {
         let w = self.weight;
-        if a.is_empty() || self.z < a.z * (1.0 - eps) {
+        if a.is_empty() || z < a.z * (1.0 - eps) {
             *a = Accum {
-                z: self.z,
+                z,
                 w,
                 radiance: self.radiance * w,
                 diffuse_direct: self.diffuse_direct * w,
@@ -473,12 +494,12 @@ impl Sample {
                 primitive: self.primitive,
                 reach: 0,
             };
-        } else if self.z <= a.z * (1.0 + eps) && blend == Blend::Average {
+        } else if z <= a.z * (1.0 + eps) && blend == Blend::Average {
             a.w += w;
             a.radiance += self.radiance * w;
             a.diffuse_direct += self.diffuse_direct * w;
             a.alpha += self.alpha * w;
-            a.z = a.z.min(self.z);
+            a.z = a.z.min(z);
             if w > a.best {
                 a.best = w;
                 a.point = self.point;

@@ -217,6 +217,7 @@ impl<'a> Synthesizer<'a> {
             tolerance: opts.tolerance,
             splat: matches!(opts.fill, Fill::Foreground | Fill::Both),
             blend: opts.blend,
+            diffuse_direct: opts.time_interp == TimeInterp::Reshade,
         };
         let poses_t = self.scene.at(t);
         let moves_of = |base: &Base| -> Vec<Option<Affine3A>> {

@@ -78,6 +78,8 @@ pub struct WarpSettings {
     pub tolerance: f32,
     pub splat: bool,
     pub blend: Blend,
+    /// Whether samples carry their diffuse direct light (for re-shading).
+    pub diffuse_direct: bool,
 }
 
 /// The frame's camera with what projecting into it needs precomputed.
@@ -356,23 +358,23 @@ fn splat_tile(
             let li = ((y - tile.y0) * sw + (x - tile.x0)) as usize;
             let Some(s) = scratch[li] else { continue };
             let k = (y * bw + x) as usize;
-            // Weight: how close the base's ray is to the frame's ray.
-            let base_dir = if s.sky {
-                s.point
+            // Weight: how close the base's ray is to the frame's ray,
+            // 1/sin of the angle between them (sky: the same direction).
+            let weight = if s.sky {
+                MAX_WEIGHT
             } else {
-                (base.points[k] - base.camera.position).normalize_or_zero()
-            };
-            let frame_dir = if s.sky {
-                s.point
-            } else {
-                (s.point - cam) / s.z
-            };
-            let sin = base_dir.cross(frame_dir).length();
-            let weight = pass.weight * (1.0 / sin).min(MAX_WEIGHT);
+                let (a, b) = (base.points[k] - base.camera.position, s.point - cam);
+                let sin2 = a.cross(b).length_squared() / (a.length_squared() * b.length_squared());
+                (1.0 / sin2).sqrt().min(MAX_WEIGHT)
+            } * pass.weight;
             let sample = Sample {
                 weight,
                 radiance: base.radiance_at(k),
-                diffuse_direct: base.diffuse_direct_at(k),
+                diffuse_direct: if settings.diffuse_direct {
+                    base.diffuse_direct_at(k)
+                } else {
+                    Vec3::ZERO
+                },
                 alpha: pass.alpha,
                 point: s.point,
                 object: base.object[k],
@@ -417,7 +419,7 @@ fn splat_tile(
             // Every sample lands on the pixel under it, so that where base
             // pixels are finer than the frame's, each frame pixel averages
             // all of those it covers.
-            let (fx, fy) = (s.px.x.floor() as i64, s.px.y.floor() as i64);
+            let (fx, fy) = (floor(s.px.x), floor(s.px.y));
             deposit(fx, fy);
             if !settings.splat {
                 continue;
@@ -441,12 +443,12 @@ fn splat_tile(
                 .iter()
                 .fold(Vec2::splat(f32::NEG_INFINITY), |m, c| m.max(*c));
             let (ya, yb) = (
-                ((lo.y - 0.5).ceil() as i64).max(y0 as i64),
-                ((hi.y - 0.5).floor() as i64).min(y1 as i64 - 1),
+                ceil(lo.y - 0.5).max(y0 as i64),
+                floor(hi.y - 0.5).min(y1 as i64 - 1),
             );
             let (xa, xb) = (
-                ((lo.x - 0.5).ceil() as i64).max(0),
-                ((hi.x - 0.5).floor() as i64).min(fw as i64 - 1),
+                ceil(lo.x - 0.5).max(0),
+                floor(hi.x - 0.5).min(fw as i64 - 1),
             );
             let inv = 1.0 / det;
             for py in ya..=yb {
@@ -464,6 +466,20 @@ fn splat_tile(
             }
         }
     }
+}
+
+/// `⌊x⌋` without a call into libm (x86-64's baseline has no rounding
+/// instruction), for the positions of splats, which are far inside `i64`.
+#[inline]
+fn floor(x: f32) -> i64 {
+    let i = x as i64;
+    i - ((i as f32) > x) as i64
+}
+
+#[inline]
+fn ceil(x: f32) -> i64 {
+    let i = x as i64;
+    i + ((i as f32) < x) as i64
 }
 
 /// One base pixel's contribution.
@@ -506,6 +522,21 @@ impl Sample {
                 a.object = self.object;
                 a.primitive = self.primitive;
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn floor_and_ceil_agree_with_libm() {
+        for x in [
+            -2.5f32, -2.0, -0.5, -0.0, 0.0, 0.3, 1.0, 1.7, 511.99, 512.0, -1e-7, 1e-7,
+        ] {
+            assert_eq!(floor(x), x.floor() as i64, "floor {x}");
+            assert_eq!(ceil(x), x.ceil() as i64, "ceil {x}");
         }
     }
 }

@@ -12,11 +12,12 @@ use std::time::Instant;
 
 use anyhow::{bail, ensure, Context, Result};
 use glam::{Affine3A, Vec3};
+use rayon::prelude::*;
 
 use crate::accel::{self, InstancedEngine};
 use crate::bake::Bake;
 use crate::camera::Camera;
-use crate::image::{RangeImage, RangeMeta, NO_HIT};
+use crate::image::{RangeImage, RangeMeta};
 use crate::scene::{Scene, ViewSpace};
 
 pub mod base;
@@ -268,7 +269,7 @@ impl<'a> Synthesizer<'a> {
             finish(&mut first, &mut stats);
             finish(&mut second, &mut stats);
             first
-                .iter()
+                .par_iter()
                 .zip(&second)
                 .map(|(a, b)| blend_linear(a, b))
                 .collect()
@@ -304,19 +305,8 @@ impl<'a> Synthesizer<'a> {
                 bases.len()
             ),
         });
-        for (k, a) in pixels.iter().enumerate() {
-            if a.is_empty() {
-                stats.holes += 1;
-                continue;
-            }
-            image.radiance[k] = a.radiance / a.w;
-            if a.z < SKY_Z {
-                image.distance[k] = a.z;
-                image.object_id[k] = a.object;
-                image.primitive_id[k] = a.primitive;
-            }
-        }
-        fill_normals(self.scene, &poses_t, &pixels, &mut image);
+        stats.holes = pixels.iter().filter(|a| a.is_empty()).count();
+        write_pixels(self.scene, &poses_t, &pixels, &mut image);
         if opts.time_interp == TimeInterp::Reshade {
             let scene = self.scene;
             let engine = self.engine_at(t)?;
@@ -373,25 +363,41 @@ fn blend_linear(a: &Accum, b: &Accum) -> Accum {
     }
 }
 
-/// Normals of the surfaces shown, from their triangles at the frame's
-/// time, turned towards the camera.
-fn fill_normals(scene: &Scene, poses: &[Affine3A], pixels: &[Accum], image: &mut RangeImage) {
+/// The frame's pixels from what they gathered; normals of the surfaces
+/// shown from their triangles at the frame's time, turned towards the
+/// camera.
+fn write_pixels(scene: &Scene, poses: &[Affine3A], pixels: &[Accum], image: &mut RangeImage) {
     let cam = image.meta.camera.position;
-    for (k, a) in pixels.iter().enumerate() {
-        let o = image.object_id[k];
-        if a.is_empty() || o == NO_HIT {
-            continue;
-        }
-        let mesh = &scene.objects[o as usize].mesh;
-        let Some(&[i, j, l]) = mesh.triangles.get(a.primitive as usize) else {
-            continue;
-        };
-        let p = &mesh.positions;
-        let n = poses[o as usize]
-            .transform_vector3((p[j as usize] - p[i as usize]).cross(p[l as usize] - p[i as usize]))
-            .normalize_or_zero();
-        image.normal[k] = if n.dot(cam - a.point) < 0.0 { -n } else { n };
-    }
+    image
+        .radiance
+        .par_iter_mut()
+        .zip(image.distance.par_iter_mut())
+        .zip(image.object_id.par_iter_mut())
+        .zip(image.primitive_id.par_iter_mut())
+        .zip(image.normal.par_iter_mut())
+        .zip(pixels.par_iter())
+        .for_each(
+            |(((((radiance, distance), object), primitive), normal), a)| {
+                if a.is_empty() {
+                    return;
+                }
+                *radiance = a.radiance / a.w;
+                if a.z >= SKY_Z {
+                    return;
+                }
+                (*distance, *object, *primitive) = (a.z, a.object, a.primitive);
+                let mesh = &scene.objects[a.object as usize].mesh;
+                let Some(&[i, j, l]) = mesh.triangles.get(a.primitive as usize) else {
+                    return;
+                };
+                let p = &mesh.positions;
+                let e = (p[j as usize] - p[i as usize]).cross(p[l as usize] - p[i as usize]);
+                let n = poses[a.object as usize]
+                    .transform_vector3(e)
+                    .normalize_or_zero();
+                *normal = if n.dot(cam - a.point) < 0.0 { -n } else { n };
+            },
+        );
 }
 
 /// Whether `position` lies in the view space (with a relative slack for

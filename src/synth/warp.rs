@@ -248,7 +248,7 @@ struct Projected {
 pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &mut [Accum]) {
     let (w, h) = (target.camera.width, target.camera.height);
     debug_assert_eq!(buffer.len(), (w * h) as usize);
-    let band = (h / 16).max(16);
+    let band = (h / 8).max(16);
     let bands = h.div_ceil(band) as usize;
     // Every (pass, tile) that may reach each band, in pass order.
     let mut work: Vec<Vec<(u32, u32)>> = vec![Vec::new(); bands];

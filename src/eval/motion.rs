@@ -11,7 +11,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 
 use super::plot::{self, Plot, Scale, Series};
 use super::reference::Reference;
@@ -137,19 +137,16 @@ pub fn run(args: &MotionArgs) -> Result<MotionResults> {
 }
 
 fn paper(q: f32) -> Option<&'static (f32, usize, &'static str, f64, f64)> {
-    PAPER.iter().find(|p| (p.0 - q).abs() < 1e-6)
+    super::report::for_quality(&PAPER, q, |p| p.0)
 }
 
 /// Writes table.md, qualities.csv, frames.csv, plots and strips.
 pub fn write(dir: &Path, r: &MotionResults) -> Result<()> {
-    let path = dir.join("table.md");
-    std::fs::write(&path, markdown(r)?).with_context(|| format!("writing {}", path.display()))?;
-    qualities_csv(r)?.write_csv(dir.join("qualities.csv"))?;
-    synthesis::frames_csv(&r.qualities)?.write_csv(dir.join("frames.csv"))?;
-    synthesis::error_per_frame_plot(dir, &r.qualities)?;
     error_vs_time_plot(dir, r)?;
-    synthesis::strips(
+    synthesis::write_sequence(
         dir,
+        &markdown(r)?,
+        &qualities_csv(r)?,
         r.args.common.size,
         &r.references[r.preview_frame].radiance,
         &r.qualities,
@@ -255,6 +252,7 @@ fn markdown(r: &MotionResults) -> Result<String> {
         "mean LRMS",
         "max LRMS",
         "mean bias",
+        "mean LRMS, emitters excluded",
         "mean FLIP",
         "paper time (s)",
         &format!("paper LRMS frame {f}"),
@@ -266,6 +264,7 @@ fn markdown(r: &MotionResults) -> Result<String> {
         cell(ref_s, 3),
         "—".into(),
         cell(ref_s, 3),
+        "0".into(),
         "0".into(),
         "0".into(),
         "0".into(),
@@ -292,6 +291,7 @@ fn markdown(r: &MotionResults) -> Result<String> {
                 sig(m.mean_lrms(), 3),
                 sig(m.max_lrms(), 3),
                 format!("{:+.4}", m.mean_bias()),
+                cell(m.mean_lrms_without_emitters(), 3),
                 cell(synthesis::mean_flip(&m.frames), 3),
                 p.map_or("—".into(), |p| sig(p.3, 4)),
                 p.map_or("—".into(), |p| format!("{:.3}", p.4)),
@@ -326,6 +326,7 @@ fn qualities_csv(r: &MotionResults) -> Result<Table> {
         "mean_lrms",
         "max_lrms",
         "mean_bias",
+        "mean_lrms_without_emitters",
         "mean_flip",
     ]);
     for q in &r.qualities {
@@ -352,6 +353,7 @@ fn qualities_csv(r: &MotionResults) -> Result<Table> {
                 m.mean_lrms().to_string(),
                 m.max_lrms().to_string(),
                 m.mean_bias().to_string(),
+                opt(m.mean_lrms_without_emitters()),
                 opt(synthesis::mean_flip(&m.frames)),
             ])?;
         }

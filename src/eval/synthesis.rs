@@ -24,6 +24,7 @@ use super::summary::{exposure_for, write_strip};
 use crate::accel::{self, Backend, InstancedEngine};
 use crate::bake::{self, Bake, BaseProjection, IndirectSource, Manifest, Shard};
 use crate::camera::Camera;
+use crate::image::NO_HIT;
 use crate::plan::{self, Plan, PlanOptions};
 use crate::radiosity::Quality;
 use crate::scene::hash::ContentHash;
@@ -410,6 +411,9 @@ pub struct SynthFrame {
     /// Pixels background fill filled.
     pub filled: usize,
     pub error: ImageError,
+    /// The error over the pixels that show no light source (see
+    /// [`emitter_free`]); `None` where none is in view.
+    pub without_emitters: Option<ImageError>,
     pub flip: Option<f64>,
 }
 
@@ -426,18 +430,64 @@ pub struct SynthRun {
     pub images: Vec<Vec<Vec3>>,
 }
 
-impl SynthRun {
-    pub fn synth_s(&self) -> f64 {
-        self.frames.iter().map(|f| f.synth_s).sum()
-    }
+/// What a synthesized frame is compared with: the reference's radiance and
+/// the pixels that show no light source.
+#[derive(Clone, Copy, Debug)]
+pub struct Truth<'a> {
+    pub radiance: &'a [Vec3],
+    pub emitter_free: Option<&'a [bool]>,
+}
 
-    pub fn load_s(&self) -> f64 {
-        self.frames.iter().map(|f| f.load_s).sum()
+impl Truth<'_> {
+    /// `test`'s error over every pixel, and over those without emitters.
+    pub fn compare(&self, test: &[Vec3]) -> Result<(ImageError, Option<ImageError>)> {
+        let all = metrics::compare(test, self.radiance, None)?;
+        let without = self
+            .emitter_free
+            .map(|m| metrics::compare(test, self.radiance, Some(m)))
+            .transpose()?;
+        Ok((all, without))
     }
+}
 
-    pub fn mean_lrms(&self) -> f64 {
-        mean(self.frames.iter().map(|f| f.error.lrms))
+/// The pixels of `camera`'s view at `t` that neither show a light source
+/// through their centre nor border one that does (so that an edge pixel
+/// partly covering a light counts as showing it); `None` when no light
+/// source is in view. A small bright light's edge, resampled a fraction of
+/// a pixel off, outweighs everything else in LRMS; without those pixels
+/// LRMS measures the lighting.
+pub fn emitter_free(
+    scene: &Scene,
+    engine: &mut dyn InstancedEngine,
+    camera: &Camera,
+    t: f32,
+) -> Result<Option<Vec<bool>>> {
+    engine.set_transforms(&scene.at(t))?;
+    let ids = crate::plan::idimage::render(&*engine, &crate::plan::IdView::Camera(*camera));
+    let emits: Vec<bool> = ids
+        .ids
+        .iter()
+        .map(|&o| o != NO_HIT && scene.material_of(o).emission.is_some())
+        .collect();
+    Ok(emits
+        .contains(&true)
+        .then(|| away_from(&emits, ids.width as usize)))
+}
+
+/// The pixels that are not marked and have no marked neighbour (of
+/// eight), of a row-major image `w` pixels wide.
+fn away_from(marked: &[bool], w: usize) -> Vec<bool> {
+    let h = marked.len() / w;
+    let mut out = vec![true; marked.len()];
+    for (k, _) in marked.iter().enumerate().filter(|(_, &m)| m) {
+        let (x, y) = (k % w, k / w);
+        for j in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+            for i in x.saturating_sub(1)..=(x + 1).min(w - 1) {
+                out[j * w + i] = false;
+            }
+        }
     }
+    out
 }
 
 /// Synthesizes every shot from `bake` with `opts` (a fresh synthesizer, so
@@ -447,7 +497,7 @@ pub fn synthesize(
     scene: &Scene,
     bake: &Bake,
     shots: &[Shot],
-    refs: &[&[Vec3]],
+    truths: &[Truth],
     opts: &Options,
     flip: Option<&Flip>,
     tag: &str,
@@ -455,11 +505,12 @@ pub fn synthesize(
     let mut synth = Synthesizer::new(scene, bake, synth::DEFAULT_BUDGET);
     let mut frames = Vec::with_capacity(shots.len());
     let mut images = Vec::with_capacity(shots.len());
-    for (i, (shot, reference)) in shots.iter().zip(refs).enumerate() {
+    for (i, (shot, truth)) in shots.iter().zip(truths).enumerate() {
         let (img, stats) = synth
             .frame(&shot.camera, shot.time, opts)
             .with_context(|| format!("{tag}: frame {i} (t = {} s)", shot.time))?;
-        let error = metrics::compare(&img.radiance, reference, None)
+        let (error, without_emitters) = truth
+            .compare(&img.radiance)
             .with_context(|| format!("{tag}: frame {i} (t = {} s)", shot.time))?;
         let synth_s = stats.seconds - stats.load_seconds;
         eprintln!(
@@ -481,14 +532,16 @@ pub fn synthesize(
             holes: stats.holes,
             filled: stats.filled,
             error,
+            without_emitters,
             flip: None,
         });
         images.push(img.radiance);
     }
     if let Some(first) = shots.first() {
+        let refs: Vec<&[Vec3]> = truths.iter().map(|t| t.radiance).collect();
         for (f, v) in frames
             .iter_mut()
-            .zip(flip_means(flip, &first.camera, refs, &images)?)
+            .zip(flip_means(flip, &first.camera, &refs, &images)?)
         {
             f.flip = v;
         }
@@ -546,6 +599,17 @@ impl ModeRun {
 
     pub fn mean_bias(&self) -> f64 {
         mean(self.frames.iter().map(|f| f.error.bias))
+    }
+
+    /// Mean LRMS without the pixels that show light sources, over the
+    /// frames that show one; `None` when none does.
+    pub fn mean_lrms_without_emitters(&self) -> Option<f64> {
+        let v: Vec<f64> = self
+            .frames
+            .iter()
+            .filter_map(|f| f.without_emitters.map(|e| e.lrms))
+            .collect();
+        (!v.is_empty()).then(|| mean(v.into_iter()))
     }
 }
 
@@ -626,13 +690,25 @@ impl Sequence<'_> {
             &out.join(REFERENCE_DIR),
         )?;
         notes.extend(reference::reuse_note(&references));
-        let refs: Vec<&[Vec3]> = references.iter().map(|r| r.radiance.as_slice()).collect();
+        let masks = self
+            .shots
+            .iter()
+            .map(|s| emitter_free(self.scene, engine, &s.camera, s.time))
+            .collect::<Result<Vec<_>>>()?;
+        let truths: Vec<Truth> = references
+            .iter()
+            .zip(&masks)
+            .map(|(r, m)| Truth {
+                radiance: &r.radiance,
+                emitter_free: m.as_deref(),
+            })
+            .collect();
         let mut qualities = Vec::new();
         for &q in &self.setup.qualities {
             let dir = out.join(BAKES_DIR).join(quality_dir("", q));
             let settings = self.common.bake_settings(q, self.setup.base_size);
             qualities.push(
-                self.quality(engine, q, &settings, &dir, &refs, &choose)
+                self.quality(engine, q, &settings, &dir, &truths, &choose)
                     .with_context(|| format!("quality {}", q.get()))?,
             );
         }
@@ -657,7 +733,7 @@ impl Sequence<'_> {
         q: Quality,
         settings: &bake::Settings,
         dir: &Path,
-        refs: &[&[Vec3]],
+        truths: &[Truth],
         choose: impl Fn(&Plan) -> Plan,
     ) -> Result<SequenceQuality> {
         let tag = format!("q = {}", q.get());
@@ -681,7 +757,7 @@ impl Sequence<'_> {
                 self.scene,
                 &bake.bake,
                 self.shots,
-                refs,
+                truths,
                 &opts,
                 self.setup.flip.as_ref(),
                 &format!("{tag} {}", mode_name(mode)),
@@ -721,11 +797,41 @@ pub fn modes_list(modes: &[TimeInterp]) -> String {
         .join(", ")
 }
 
+/// Writes what every sequence experiment reports: `table.md`,
+/// `qualities.csv`, `frames.csv`, `error_per_frame.png` and the strips of
+/// the preview frame (whose reference is `reference`).
+pub fn write_sequence(
+    dir: &Path,
+    markdown: &str,
+    qualities_csv: &Table,
+    size: (u32, u32),
+    reference: &[Vec3],
+    qualities: &[SequenceQuality],
+) -> Result<()> {
+    let path = dir.join("table.md");
+    std::fs::write(&path, markdown).with_context(|| format!("writing {}", path.display()))?;
+    qualities_csv.write_csv(dir.join("qualities.csv"))?;
+    frames_csv(qualities)?.write_csv(dir.join("frames.csv"))?;
+    error_per_frame_plot(dir, qualities)?;
+    strips(dir, size, reference, qualities)
+}
+
 /// One row per quality, mode and frame.
 pub fn frames_csv(qualities: &[SequenceQuality]) -> Result<Table> {
     let mut t = Table::new([
-        "quality", "mode", "frame", "time_s", "lrms", "bias", "flip", "synth_s", "load_s",
-        "images", "holes", "filled",
+        "quality",
+        "mode",
+        "frame",
+        "time_s",
+        "lrms",
+        "bias",
+        "lrms_without_emitters",
+        "flip",
+        "synth_s",
+        "load_s",
+        "images",
+        "holes",
+        "filled",
     ]);
     for q in qualities {
         for m in &q.modes {
@@ -737,6 +843,8 @@ pub fn frames_csv(qualities: &[SequenceQuality]) -> Result<Table> {
                     f.time.to_string(),
                     f.error.lrms.to_string(),
                     f.error.bias.to_string(),
+                    f.without_emitters
+                        .map_or(String::new(), |e| e.lrms.to_string()),
                     f.flip.map_or(String::new(), |x| x.to_string()),
                     f.synth_s.to_string(),
                     f.load_s.to_string(),
@@ -752,7 +860,7 @@ pub fn frames_csv(qualities: &[SequenceQuality]) -> Result<Table> {
 
 /// `error_per_frame.png`: LRMS against scene time, one line per quality
 /// and mode.
-pub fn error_per_frame_plot(dir: &Path, qualities: &[SequenceQuality]) -> Result<()> {
+fn error_per_frame_plot(dir: &Path, qualities: &[SequenceQuality]) -> Result<()> {
     let series: Vec<Series> = qualities
         .iter()
         .flat_map(|q| {
@@ -771,7 +879,7 @@ pub fn error_per_frame_plot(dir: &Path, qualities: &[SequenceQuality]) -> Result
 
 /// `strip-q<q>.png` per quality: the preview frame's reference, then each
 /// mode's frame, at the reference's exposure.
-pub fn strips(
+fn strips(
     dir: &Path,
     size: (u32, u32),
     reference: &[Vec3],
@@ -1019,6 +1127,25 @@ mod tests {
         );
         assert!(seq(Some(0)).times((0.0, 1.0), 30.0).is_err());
         assert!(seq(None).times((0.0, 1.0), 0.0).is_err());
+    }
+
+    #[test]
+    fn pixels_at_and_beside_a_light_are_left_out() {
+        // 4 x 3, a light at (1, 1): everything within one pixel of it goes.
+        let mut marked = vec![false; 12];
+        marked[5] = true;
+        let keep = away_from(&marked, 4);
+        let expect = [
+            false, false, false, true, //
+            false, false, false, true, //
+            false, false, false, true,
+        ];
+        assert_eq!(keep, expect);
+        // A light in the corner reaches no further than its neighbours.
+        let mut marked = vec![false; 12];
+        marked[11] = true;
+        let gone: Vec<usize> = (0..12).filter(|&k| !away_from(&marked, 4)[k]).collect();
+        assert_eq!(gone, [6, 7, 10, 11]);
     }
 
     #[test]

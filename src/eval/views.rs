@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{ensure, Context, Result};
 use glam::Vec3;
 
-use super::metrics::{self, ImageError};
+use super::metrics::ImageError;
 use super::plot::{self, Plot, Scale, Series};
 use super::reference::Reference;
 use super::report::{sig, Table};
@@ -24,7 +24,7 @@ use super::staging::{Staging, BAKES_DIR, REFERENCE_DIR};
 use super::summary::{exposure_for, write_strip};
 use super::synthesis::{
     self, bake_cached, cell, plan_timed, references_of, BakeCost, BakeTiming, CommonArgs, Shot,
-    SynthFrame,
+    SynthFrame, Truth,
 };
 use crate::plan::{Plan, PlannedView};
 use crate::radiosity::lookup::IrradianceCache;
@@ -76,6 +76,7 @@ pub struct FillRun {
 pub struct DirectRun {
     pub seconds: f64,
     pub error: ImageError,
+    pub without_emitters: Option<ImageError>,
     pub flip: Option<f64>,
     pub image: Vec<Vec3>,
 }
@@ -246,7 +247,11 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
             &refs_dir,
         )?
         .remove(0);
-        let refs = [reference.radiance.as_slice()];
+        let mask = synthesis::emitter_free(&scene, engine.as_mut(), &shot.camera, time)?;
+        let truth = Truth {
+            radiance: &reference.radiance,
+            emitter_free: mask.as_deref(),
+        };
         let fills = |bake: &crate::bake::Bake, what: &str| -> Result<Vec<FillRun>> {
             FILLS
                 .iter()
@@ -261,7 +266,7 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
                         &scene,
                         bake,
                         std::slice::from_ref(&shot),
-                        &refs,
+                        &[truth],
                         &opts,
                         setup.flip.as_ref(),
                         &format!("{tag} {what}, fill {}", fill_name(fill)),
@@ -282,7 +287,7 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
             &own.bake,
             &shot,
             c.base_spp,
-            &reference.radiance,
+            &truth,
             setup.flip.as_ref(),
         )
         .with_context(|| format!("{tag}: the multipass render of the target"))?;
@@ -335,7 +340,7 @@ fn render_direct(
     bake: &crate::bake::Bake,
     shot: &Shot,
     spp: u32,
-    reference: &[Vec3],
+    truth: &Truth,
     flip: Option<&super::flip::Flip>,
 ) -> Result<DirectRun> {
     let (simplified, series) =
@@ -349,9 +354,9 @@ fn render_direct(
     };
     let (img, stats) =
         multipass::render(scene, &*engine, &shot.camera, shot.time, &settings, &cache)?;
-    let error = metrics::compare(&img.radiance, reference, None)?;
+    let (error, without_emitters) = truth.compare(&img.radiance)?;
     let flip = match flip {
-        Some(f) => Some(f.hdr_mean(img.width, img.height, reference, &img.radiance)?),
+        Some(f) => Some(f.hdr_mean(img.width, img.height, truth.radiance, &img.radiance)?),
         None => None,
     };
     eprintln!(
@@ -361,6 +366,7 @@ fn render_direct(
     Ok(DirectRun {
         seconds: stats.seconds,
         error,
+        without_emitters,
         flip,
         image: img.radiance,
     })
@@ -426,7 +432,7 @@ pub fn fill_name(fill: Fill) -> &'static str {
 }
 
 fn paper(q: f32) -> Option<f64> {
-    PAPER.iter().find(|p| (p.0 - q).abs() < 1e-6).map(|p| p.1)
+    super::report::for_quality(&PAPER, q, |p| p.0).map(|p| p.1)
 }
 
 /// Writes table.md, qualities.csv, the plot and the image strips.
@@ -507,7 +513,7 @@ fn markdown(r: &ViewsResults) -> Result<String> {
     ]);
     let paper_plan = [(0.3, 2, 10.77), (0.6, 3, 34.12), (0.9, 5, 116.05)];
     for q in &r.qualities {
-        let p = paper_plan.iter().find(|p| (p.0 - q.quality).abs() < 1e-6);
+        let p = super::report::for_quality(&paper_plan, q.quality, |p| p.0);
         t.push([
             q.quality.to_string(),
             q.plan.views.len().to_string(),
@@ -578,6 +584,7 @@ fn markdown(r: &ViewsResults) -> Result<String> {
         "filled",
         "LRMS",
         "bias",
+        "LRMS, emitters excluded",
         "FLIP",
         "paper LRMS",
     ]);
@@ -591,6 +598,7 @@ fn markdown(r: &ViewsResults) -> Result<String> {
             "—".into(),
             "—".into(),
             "—".into(),
+            "0".into(),
             "0".into(),
             "0".into(),
             "0".into(),
@@ -623,6 +631,7 @@ fn markdown(r: &ViewsResults) -> Result<String> {
                 fr.filled.to_string(),
                 sig(fr.error.lrms, 3),
                 format!("{:+.4}", fr.error.bias),
+                cell(fr.without_emitters.map(|e| e.lrms), 3),
                 cell(fr.flip, 3),
                 // The paper's figures are for pinterp's default fills
                 // (foreground and background).
@@ -647,6 +656,7 @@ fn markdown(r: &ViewsResults) -> Result<String> {
             "0".into(),
             sig(d.error.lrms, 3),
             format!("{:+.4}", d.error.bias),
+            cell(d.without_emitters.map(|e| e.lrms), 3),
             cell(d.flip, 3),
             "—".into(),
         ])?;
@@ -687,6 +697,7 @@ fn qualities_csv(r: &ViewsResults) -> Result<Table> {
         "filled",
         "lrms",
         "bias",
+        "lrms_without_emitters",
         "flip",
         "reference_s",
     ]);
@@ -712,6 +723,7 @@ fn qualities_csv(r: &ViewsResults) -> Result<Table> {
             holes: 0,
             filled: 0,
             error: d.error,
+            without_emitters: d.without_emitters,
             flip: d.flip,
         };
         rows.push(("multipass", "", 0.0, &q.resampled_bake, direct));
@@ -739,6 +751,8 @@ fn qualities_csv(r: &ViewsResults) -> Result<Table> {
                 fr.filled.to_string(),
                 fr.error.lrms.to_string(),
                 fr.error.bias.to_string(),
+                fr.without_emitters
+                    .map_or(String::new(), |e| e.lrms.to_string()),
                 fr.flip.map_or(String::new(), |x| x.to_string()),
                 q.reference.seconds.map_or(String::new(), |x| x.to_string()),
             ])?;

@@ -13,7 +13,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::{ensure, Context, Result};
+use anyhow::{ensure, Result};
 use glam::Vec3;
 
 use super::experiment::{self, seconds_per_sample, ConvergencePoint, Target};
@@ -272,15 +272,12 @@ fn paper(q: f32) -> Option<(f64, f64)> {
 /// Writes table.md, qualities.csv, frames.csv, convergence.csv, plots and
 /// strips.
 pub fn write(dir: &Path, r: &WalkResults) -> Result<()> {
-    let path = dir.join("table.md");
-    std::fs::write(&path, markdown(r)?).with_context(|| format!("writing {}", path.display()))?;
-    qualities_csv(r)?.write_csv(dir.join("qualities.csv"))?;
-    synthesis::frames_csv(&r.qualities)?.write_csv(dir.join("frames.csv"))?;
     convergence_table(&r.convergence)?.write_csv(dir.join("convergence.csv"))?;
-    synthesis::error_per_frame_plot(dir, &r.qualities)?;
     error_vs_time_plot(dir, r)?;
-    synthesis::strips(
+    synthesis::write_sequence(
         dir,
+        &markdown(r)?,
+        &qualities_csv(r)?,
         r.args.common.size,
         &r.references[r.preview_frame].radiance,
         &r.qualities,
@@ -371,6 +368,7 @@ fn markdown(r: &WalkResults) -> Result<String> {
         "mean LRMS".into(),
         "max LRMS".into(),
         "mean bias".into(),
+        "mean LRMS, emitters excluded".into(),
         "mean FLIP".into(),
         "path tracer at equal error: spp".into(),
         "path tracer, all frames (s)".into(),
@@ -384,6 +382,7 @@ fn markdown(r: &WalkResults) -> Result<String> {
         cell(ref_s, 3),
         "—".into(),
         cell(ref_s.map(|s| s / n as f64), 3),
+        "0".into(),
         "0".into(),
         "0".into(),
         "0".into(),
@@ -405,6 +404,7 @@ fn markdown(r: &WalkResults) -> Result<String> {
                 sig(m.mean_lrms(), 3),
                 sig(m.max_lrms(), 3),
                 format!("{:+.4}", m.mean_bias()),
+                cell(m.mean_lrms_without_emitters(), 3),
                 cell(synthesis::mean_flip(&m.frames), 3),
                 am.map_or("—".into(), |x| {
                     format!("{}{}", sig(x.path_spp, 3), reach_note(&x))
@@ -466,6 +466,7 @@ fn qualities_csv(r: &WalkResults) -> Result<Table> {
         "per_frame_s",
         "mean_lrms",
         "max_lrms",
+        "mean_lrms_without_emitters",
         "mean_flip",
         "path_spp",
         "path_reach",
@@ -494,6 +495,7 @@ fn qualities_csv(r: &WalkResults) -> Result<Table> {
                 m.per_frame_s().to_string(),
                 m.mean_lrms().to_string(),
                 m.max_lrms().to_string(),
+                opt(m.mean_lrms_without_emitters()),
                 opt(synthesis::mean_flip(&m.frames)),
                 opt(am.map(|a| a.path_spp)),
                 am.map_or(String::new(), |a| format!("{:?}", a.reach).to_lowercase()),
@@ -575,6 +577,7 @@ mod tests {
             holes: 0,
             filled: 0,
             error: error(0.25),
+            without_emitters: None,
             flip: None,
         };
         let quality = SequenceQuality {
@@ -667,7 +670,7 @@ mod tests {
             .find(|l| l.starts_with("| q = 0.3, linear |"))
             .unwrap_or_else(|| panic!("no row for q = 0.3 in\n{md}"));
         let cells: Vec<&str> = row.split(" | ").collect();
-        assert_eq!(cells.len(), 13, "{row}");
+        assert_eq!(cells.len(), 14, "{row}");
         assert!(row.contains("| 16.0 | 3.20 | 87 | 1.36x | 90.0 |"), "{row}");
         // The phases: 2 + 10 + 40 s, the paper's 1,213.53 minutes beside.
         assert!(

@@ -598,28 +598,8 @@ struct PlanArgs {
     #[arg(long, value_enum, default_value_t = Backend::default_available())]
     backend: Backend,
     /// Replace the scene's view space by the segment `x,y,z:x,y,z`.
-    #[arg(long, value_parser = parse_segment, allow_hyphen_values = true)]
+    #[arg(long, value_parser = rangewalk::scene::parse_segment, allow_hyphen_values = true)]
     view_segment: Option<rangewalk::scene::ViewSpace>,
-}
-
-fn parse_segment(s: &str) -> Result<rangewalk::scene::ViewSpace, String> {
-    let err = |why: &str| format!("`{s}` is not a segment x,y,z:x,y,z ({why})");
-    let point = |p: &str| -> Result<glam::Vec3, String> {
-        let v: Vec<f32> = p
-            .split(',')
-            .map(|c| c.trim().parse::<f32>())
-            .collect::<Result<_, _>>()
-            .map_err(|e| err(&format!("`{p}`: {e}")))?;
-        match v[..] {
-            [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(glam::Vec3::new(x, y, z)),
-            _ => Err(err(&format!("`{p}` is not three finite numbers"))),
-        }
-    };
-    let (a, b) = s.split_once(':').ok_or_else(|| err("no `:`"))?;
-    Ok(rangewalk::scene::ViewSpace::Segment {
-        a: point(a)?,
-        b: point(b)?,
-    })
 }
 
 /// `rangewalk plan`: the plan, the fitness behind each choice and each

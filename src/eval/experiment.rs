@@ -219,13 +219,7 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
         args.reference_spp,
         &staging.dir().join(REFERENCE_DIR),
     )?;
-    let reused = references.iter().filter(|r| r.reused).count();
-    if reused > 0 {
-        notes.push(format!(
-            "{reused} of {} references reused from an earlier run",
-            references.len()
-        ));
-    }
+    notes.extend(reference::reuse_note(&references));
     let refs: Vec<&[Vec3]> = references.iter().map(|r| r.radiance.as_slice()).collect();
     let ctx = Frames {
         scene: &scene,
@@ -312,12 +306,29 @@ pub fn frame_times(scene: &Scene, frames: Option<u32>) -> Vec<f32> {
             ((a.end - a.start) * a.fps).round().max(1.0) as u32
         }
     });
-    if n == 1 {
-        return vec![a.start];
-    }
-    (0..n)
-        .map(|i| a.start + (a.end - a.start) * i as f32 / (n - 1) as f32)
-        .collect()
+    super::synthesis::spread(a.start, a.end, n)
+}
+
+/// FLIP of each image against its reference (all of `camera`'s size), in
+/// one batch; `None` for each when FLIP is left out.
+pub(crate) fn flip_means(
+    flip: Option<&Flip>,
+    camera: &Camera,
+    refs: &[&[Vec3]],
+    images: &[Vec<Vec3>],
+) -> Result<Vec<Option<f64>>> {
+    let Some(f) = flip else {
+        return Ok(vec![None; images.len()]);
+    };
+    let pairs: Vec<(&[Vec3], &[Vec3])> = refs
+        .iter()
+        .zip(images)
+        .map(|(r, t)| (*r, t.as_slice()))
+        .collect();
+    Ok(f.hdr_means(camera.width, camera.height, &pairs)?
+        .into_iter()
+        .map(Some)
+        .collect())
 }
 
 /// What every per-frame loop needs.
@@ -333,19 +344,7 @@ struct Frames<'a> {
 impl Frames<'_> {
     /// FLIP of each frame against its reference, in one batch.
     fn flip(&self, images: &[Vec<Vec3>]) -> Result<Vec<Option<f64>>> {
-        let Some(f) = self.flip else {
-            return Ok(vec![None; images.len()]);
-        };
-        let pairs: Vec<(&[Vec3], &[Vec3])> = self
-            .refs
-            .iter()
-            .zip(images)
-            .map(|(r, t)| (*r, t.as_slice()))
-            .collect();
-        Ok(f.hdr_means(self.camera.width, self.camera.height, &pairs)?
-            .into_iter()
-            .map(Some)
-            .collect())
+        flip_means(self.flip, self.camera, self.refs, images)
     }
 }
 
@@ -475,15 +474,15 @@ fn path_tracer_run(
 /// cost per frame and below the smallest error of the qualities measured,
 /// so that the plot shows where (and whether) it crosses them.
 #[derive(Clone, Copy, Debug)]
-struct Target {
-    seconds: f64,
-    lrms: f64,
+pub(crate) struct Target {
+    pub seconds: f64,
+    pub lrms: f64,
 }
 
 /// The path tracer's error on one frame at 1, 2, 4, ... samples per pixel,
 /// up to `max_spp` or until it has passed `target` in time (twice over)
 /// and in error.
-fn convergence(
+pub(crate) fn convergence(
     scene: &Scene,
     engine: &mut dyn InstancedEngine,
     camera: &Camera,
@@ -518,10 +517,9 @@ fn convergence(
 /// of the largest measured render (small ones are dominated by fixed
 /// costs); at least 1 and at most `max_spp` (`true` when capped there).
 fn equal_time_spp(curve: &[ConvergencePoint], budget: f64, max_spp: u32) -> (u32, bool) {
-    let Some(last) = curve.iter().max_by_key(|p| p.spp) else {
+    let Some(per_sample) = seconds_per_sample(curve) else {
         return (1, false);
     };
-    let per_sample = last.seconds / last.spp as f64;
     let spp = if per_sample > 0.0 {
         (budget / per_sample).round()
     } else {
@@ -532,6 +530,13 @@ fn equal_time_spp(curve: &[ConvergencePoint], budget: f64, max_spp: u32) -> (u32
     } else {
         (spp.max(1.0) as u32, false)
     }
+}
+
+/// The path tracer's cost of one sample per pixel of a frame, from the
+/// largest measured render (small ones are dominated by fixed costs).
+pub(crate) fn seconds_per_sample(curve: &[ConvergencePoint]) -> Option<f64> {
+    let last = curve.iter().max_by_key(|p| p.spp)?;
+    Some(last.seconds / last.spp as f64)
 }
 
 #[cfg(test)]

@@ -55,6 +55,21 @@ const COLORS: [RGBColor; 10] = [
     RGBColor(23, 190, 207),
 ];
 
+/// `error_per_frame.png` in `dir`: LRMS against scene time, one line per
+/// series.
+pub fn error_per_frame(dir: &Path, series: &[Series]) -> Result<()> {
+    write_png(
+        dir.join("error_per_frame.png"),
+        &Plot {
+            title: "Error per frame",
+            x_label: "scene time (s)",
+            y_label: "LRMS",
+            scale: Scale::Linear,
+            series,
+        },
+    )
+}
+
 /// Draws `plot` and writes it to `path` as an RGB PNG.
 pub fn write_png(path: impl AsRef<Path>, plot: &Plot) -> Result<()> {
     let path = path.as_ref();

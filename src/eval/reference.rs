@@ -92,6 +92,17 @@ pub fn references(
     Ok(out)
 }
 
+/// The report's note on references read from the cache, if any were.
+pub fn reuse_note(references: &[Reference]) -> Option<String> {
+    let reused = references.iter().filter(|r| r.reused).count();
+    (reused > 0).then(|| {
+        format!(
+            "{reused} of {} references reused from an earlier run",
+            references.len()
+        )
+    })
+}
+
 /// Path-traced radiance of `camera`'s view at `t` and the rendering time.
 pub fn path_trace(
     scene: &Scene,

@@ -83,6 +83,11 @@ impl Table {
     }
 }
 
+/// The row of a table of published figures (the paper's) for quality `q`.
+pub fn for_quality<T>(rows: &[T], q: f32, quality: impl Fn(&T) -> f32) -> Option<&T> {
+    rows.iter().find(|r| (quality(r) - q).abs() < 1e-6)
+}
+
 /// A number with `digits` significant digits, without exponent where it
 /// stays readable: table cells of very different magnitudes (seconds,
 /// errors) line up without a per-column format.

@@ -1,6 +1,7 @@
 //! An experiment's output folder, written under `<out>.partial` and renamed
 //! to `<out>` only when complete: a folder named `<out>` always holds a
-//! finished experiment. Cached references survive reruns and failures.
+//! finished experiment. Cached references and bakes survive reruns and
+//! failures.
 
 use std::path::{Path, PathBuf};
 
@@ -9,8 +10,15 @@ use anyhow::{bail, Context, Result};
 /// The folder of cached references inside an output folder.
 pub const REFERENCE_DIR: &str = "reference";
 
-/// Files an experiment writes besides PNG images and the reference folder.
-const FILES: &[&str] = &["table.md", "frames.csv", "convergence.csv"];
+/// The folder of cached bakes (base images per quality) inside an output
+/// folder.
+pub const BAKES_DIR: &str = "bakes";
+
+/// Folders of an output folder that are kept from run to run.
+const CACHES: &[&str] = &[REFERENCE_DIR, BAKES_DIR];
+
+/// Files an experiment writes besides PNG images and the cache folders.
+const FILES: &[&str] = &["table.md", "frames.csv", "convergence.csv", "qualities.csv"];
 
 /// An output folder being written.
 pub struct Staging {
@@ -20,7 +28,8 @@ pub struct Staging {
 
 impl Staging {
     /// Prepares `<out>.partial`: emptied of an earlier attempt's results,
-    /// keeping (and adopting from a finished `<out>`) cached references.
+    /// keeping (and adopting from a finished `<out>`) cached references and
+    /// bakes.
     /// Refuses folders holding anything an experiment does not write, so a
     /// mistyped `--out` cannot replace unrelated files.
     pub fn begin(out: &Path) -> Result<Staging> {
@@ -34,7 +43,7 @@ impl Staging {
         check_ours(&partial)?;
         if partial.exists() {
             for entry in entries(&partial)? {
-                if entry.file_name() != Some(REFERENCE_DIR.as_ref()) {
+                if !is_cache(&entry) {
                     std::fs::remove_file(&entry)
                         .with_context(|| format!("removing {}", entry.display()))?;
                 }
@@ -42,14 +51,19 @@ impl Staging {
         }
         let refs = partial.join(REFERENCE_DIR);
         std::fs::create_dir_all(&refs).with_context(|| format!("creating {}", refs.display()))?;
-        let old_refs = out.join(REFERENCE_DIR);
-        if old_refs.is_dir() {
-            for entry in entries(&old_refs)? {
-                let to = refs.join(entry.file_name().expect("directory entries have names"));
-                if !to.exists() {
-                    std::fs::rename(&entry, &to).with_context(|| {
-                        format!("moving {} to {}", entry.display(), to.display())
-                    })?;
+        for cache in CACHES {
+            let old = out.join(cache);
+            if old.is_dir() {
+                let dir = partial.join(cache);
+                std::fs::create_dir_all(&dir)
+                    .with_context(|| format!("creating {}", dir.display()))?;
+                for entry in entries(&old)? {
+                    let to = dir.join(entry.file_name().expect("directory entries have names"));
+                    if !to.exists() {
+                        std::fs::rename(&entry, &to).with_context(|| {
+                            format!("moving {} to {}", entry.display(), to.display())
+                        })?;
+                    }
                 }
             }
         }
@@ -97,7 +111,7 @@ fn check_ours(dir: &Path) -> Result<()> {
     for entry in entries(dir)? {
         let name = entry.file_name().unwrap_or_default().to_string_lossy();
         let ours = if entry.is_dir() {
-            name == REFERENCE_DIR
+            is_cache(&entry)
         } else {
             FILES.contains(&name.as_ref()) || name.ends_with(".png")
         };
@@ -111,6 +125,14 @@ fn check_ours(dir: &Path) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Whether `entry` is one of the cache folders.
+fn is_cache(entry: &Path) -> bool {
+    entry.is_dir()
+        && entry
+            .file_name()
+            .is_some_and(|n| CACHES.iter().any(|c| n == *c))
 }
 
 fn entries(dir: &Path) -> Result<Vec<PathBuf>> {
@@ -134,6 +156,9 @@ mod tests {
         let s = Staging::begin(&out).unwrap();
         std::fs::write(s.dir().join("table.md"), "one").unwrap();
         std::fs::write(s.dir().join(REFERENCE_DIR).join("a.exr"), "ref").unwrap();
+        let bake = s.dir().join(BAKES_DIR).join("q0.3");
+        std::fs::create_dir_all(&bake).unwrap();
+        std::fs::write(bake.join("manifest.json"), "{}").unwrap();
         assert!(!out.exists());
         assert_eq!(s.finish().unwrap(), out);
         assert!(!root.path().join("exp.partial").exists());
@@ -142,6 +167,12 @@ mod tests {
         // third adopts the cached reference and replaces the results.
         let s = Staging::begin(&out).unwrap();
         assert!(s.dir().join(REFERENCE_DIR).join("a.exr").exists());
+        assert!(s
+            .dir()
+            .join(BAKES_DIR)
+            .join("q0.3")
+            .join("manifest.json")
+            .exists());
         assert!(!s.dir().join("table.md").exists());
         drop(s);
         assert_eq!(
@@ -156,6 +187,7 @@ mod tests {
             "two"
         );
         assert!(out.join(REFERENCE_DIR).join("a.exr").exists());
+        assert!(out.join(BAKES_DIR).join("q0.3").is_dir());
     }
 
     #[test]

@@ -8,7 +8,9 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use glam::Vec3;
 
-use super::experiment::{FrameResult, IndirectResults, PathTracerRun, QualityRun};
+use super::experiment::{
+    ConvergencePoint, FrameResult, IndirectResults, PathTracerRun, QualityRun,
+};
 use super::metrics::luminance;
 use super::plot::{self, Plot, Scale, Series};
 use super::report::{sig, Table};
@@ -25,10 +27,7 @@ const PAPER: [(f32, f64, f64); 3] = [
 ];
 
 fn paper(q: f32) -> Option<(f64, f64)> {
-    PAPER
-        .iter()
-        .find(|p| (p.0 - q).abs() < 1e-6)
-        .map(|p| (p.1, p.2))
+    super::report::for_quality(&PAPER, q, |p| p.0).map(|p| (p.1, p.2))
 }
 
 /// Writes every output file of `r` into `dir`.
@@ -42,7 +41,8 @@ pub fn write(dir: &Path, r: &IndirectResults) -> Result<()> {
     previews(dir, r)
 }
 
-fn mean(xs: impl Iterator<Item = f64>) -> f64 {
+/// The mean of `xs`; NaN when there are none.
+pub fn mean(xs: impl Iterator<Item = f64>) -> f64 {
     let (s, n) = xs.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
     if n == 0 {
         f64::NAN
@@ -240,7 +240,7 @@ fn table2_row(q: &QualityRun) -> Vec<String> {
 }
 
 /// A short list of times: all of them when few, else the ends and count.
-fn times_list(times: &[f32]) -> String {
+pub fn times_list(times: &[f32]) -> String {
     let all: Vec<String> = times
         .iter()
         .map(|t| {
@@ -304,8 +304,14 @@ fn frames_csv(r: &IndirectResults) -> Result<Table> {
 }
 
 fn convergence_csv(r: &IndirectResults) -> Result<Table> {
+    convergence_table(&r.convergence)
+}
+
+/// The path tracer's convergence curve: samples per pixel, seconds, LRMS
+/// and bias.
+pub fn convergence_table(curve: &[ConvergencePoint]) -> Result<Table> {
     let mut t = Table::new(["spp", "seconds", "lrms", "bias"]);
-    for p in &r.convergence {
+    for p in curve {
         t.push([
             p.spp.to_string(),
             sig(p.seconds, 4),
@@ -334,29 +340,10 @@ fn plots(dir: &Path, r: &IndirectResults) -> Result<()> {
             .iter()
             .map(|p| per_frame(pt_label(p), &p.frames)),
     );
-    plot::write_png(
-        dir.join("error_per_frame.png"),
-        &Plot {
-            title: "Error per frame",
-            x_label: "scene time (s)",
-            y_label: "LRMS",
-            scale: Scale::Linear,
-            series: &series,
-        },
-    )?;
+    plot::error_per_frame(dir, &series)?;
 
     let n = r.times.len() as f64;
-    let mut series = vec![Series {
-        label: format!(
-            "path tracer, 1..{} spp",
-            r.convergence.last().map_or(0, |p| p.spp)
-        ),
-        points: r
-            .convergence
-            .iter()
-            .map(|p| (p.seconds, p.error.lrms))
-            .collect(),
-    }];
+    let mut series = vec![convergence_series(&r.convergence)];
     series.extend(r.qualities.iter().map(|q| Series {
         label: format!("q = {}", q.quality),
         points: vec![(q.total_s() / n, mean(q.frames.iter().map(|f| f.error.lrms)))],
@@ -381,17 +368,21 @@ fn plots(dir: &Path, r: &IndirectResults) -> Result<()> {
     )
 }
 
+/// The path tracer's convergence curve as a plot series: LRMS against
+/// seconds per frame.
+pub fn convergence_series(curve: &[ConvergencePoint]) -> Series {
+    Series {
+        label: format!("path tracer, 1..{} spp", curve.last().map_or(0, |p| p.spp)),
+        points: curve.iter().map(|p| (p.seconds, p.error.lrms)).collect(),
+    }
+}
+
 /// PNG previews of one frame, all at the exposure that puts the reference's
 /// mean luminance at middle grey, so they compare directly.
 fn previews(dir: &Path, r: &IndirectResults) -> Result<()> {
     let (w, h) = r.args.size;
     let reference = &r.references[r.preview_frame].radiance;
-    let y = reference.iter().map(|&c| luminance(c)).sum::<f64>() / reference.len() as f64;
-    let exposure = if y > 0.0 {
-        (0.18 / y).log2().clamp(-60.0, 60.0) as f32
-    } else {
-        0.0
-    };
+    let exposure = exposure_for(reference);
     let write = |name: String, radiance: &[Vec3]| {
         image::write_png_preview(dir.join(name), w, h, radiance, exposure)
     };
@@ -403,4 +394,42 @@ fn previews(dir: &Path, r: &IndirectResults) -> Result<()> {
         write(format!("preview-path-tracer-{}spp.png", p.spp), &p.preview)?;
     }
     Ok(())
+}
+
+/// The exposure (stops) that puts `reference`'s mean luminance at middle
+/// grey: images shown at it beside the reference compare directly.
+pub fn exposure_for(reference: &[Vec3]) -> f32 {
+    let y = reference.iter().map(|&c| luminance(c)).sum::<f64>() / reference.len().max(1) as f64;
+    if y > 0.0 {
+        (0.18 / y).log2().clamp(-60.0, 60.0) as f32
+    } else {
+        0.0
+    }
+}
+
+/// Gap between the images of a strip, in pixels (white).
+const STRIP_GAP: u32 = 4;
+
+/// The images (each `w x h` linear radiance) side by side in one PNG, left
+/// to right, tone-mapped at one `exposure`.
+pub fn write_strip(
+    path: impl AsRef<Path>,
+    (w, h): (u32, u32),
+    images: &[&[Vec3]],
+    exposure: f32,
+) -> Result<()> {
+    let n = images.len() as u32;
+    let width = n * w + n.saturating_sub(1) * STRIP_GAP;
+    let mut rgb = vec![255u8; (width * h * 3) as usize];
+    for (i, img) in images.iter().enumerate() {
+        let tile = image::tonemap_srgb8(img, exposure);
+        let x0 = i as u32 * (w + STRIP_GAP);
+        for y in 0..h {
+            let from = (y * w * 3) as usize;
+            let to = ((y * width + x0) * 3) as usize;
+            rgb[to..to + (w * 3) as usize].copy_from_slice(&tile[from..from + (w * 3) as usize]);
+        }
+    }
+    image::png_io::write(path.as_ref(), width, h, &rgb)
+        .with_context(|| format!("writing {}", path.as_ref().display()))
 }

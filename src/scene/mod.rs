@@ -238,6 +238,28 @@ impl ViewSpace {
     }
 }
 
+/// A segment view space written `x,y,z:x,y,z` (the `--view-segment` of
+/// the commands that replace a scene's view space).
+pub fn parse_segment(s: &str) -> Result<ViewSpace, String> {
+    let err = |why: &str| format!("`{s}` is not a segment x,y,z:x,y,z ({why})");
+    let point = |p: &str| -> Result<Vec3, String> {
+        let v: Vec<f32> = p
+            .split(',')
+            .map(|c| c.trim().parse::<f32>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| err(&format!("`{p}`: {e}")))?;
+        match v[..] {
+            [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3::new(x, y, z)),
+            _ => Err(err(&format!("`{p}` is not three finite numbers"))),
+        }
+    };
+    let (a, b) = s.split_once(':').ok_or_else(|| err("no `:`"))?;
+    Ok(ViewSpace::Segment {
+        a: point(a)?,
+        b: point(b)?,
+    })
+}
+
 /// A camera moving over time: keyframes interpolated linearly.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WalkPath {

@@ -190,7 +190,7 @@ impl<'a> Synthesizer<'a> {
         let start = Instant::now();
         let load_before = self.cache.load_seconds;
         let views = self.nearest_views(camera.position, opts.bases);
-        // (image, view, weight in time, time fraction, to-be-linear-second)
+        // (manifest image, weight in time, whether it is the later time)
         let mut wanted: Vec<(usize, f32, bool)> = Vec::new();
         for &v in &views {
             let (lo, hi) = self.bracket(v, t)?;
@@ -401,7 +401,7 @@ fn write_pixels(scene: &Scene, poses: &[Affine3A], pixels: &[Accum], image: &mut
 }
 
 /// Whether `position` lies in the view space (with a relative slack for
-/// rounding); `None` when the scene has none.
+/// rounding).
 pub fn inside_view_space(space: &ViewSpace, position: Vec3) -> bool {
     let slack = 1e-4;
     match *space {

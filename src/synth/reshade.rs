@@ -88,7 +88,8 @@ pub fn apply(
             }
             let first = (y * w) as u64;
             let direct = shading.diffuse_direct(&points, opts.reshade_samples, opts.seed, first)?;
-            for ((x, d), a) in at.into_iter().zip(direct).map(|(x, d)| ((x, d), &acc[x])) {
+            for (x, d) in at.into_iter().zip(direct) {
+                let a = &acc[x];
                 let kept = (a.radiance - a.diffuse_direct) / a.w;
                 row[x] = kept.max(Vec3::ZERO) + d;
             }

@@ -131,7 +131,7 @@ void write_rgb8(rust::Str path_str, uint32_t width, uint32_t height,
     finish(*out, path, ok);
 }
 
-Raster read_image(rust::Str path_str) {
+Decoded read_image(rust::Str path_str) {
     std::string path(path_str);
     auto in = OIIO::ImageInput::open(path);
     if (!in)
@@ -148,10 +148,13 @@ Raster read_image(rust::Str path_str) {
     if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeUnknown, native.data()))
         fail(path, "cannot read pixels", in->geterror());
 
-    Raster r;
-    r.width = uint32_t(spec.width);
-    r.height = uint32_t(spec.height);
-    r.integer_samples = !spec.format.is_floating_point();
+    Decoded d;
+    d.raster.width = uint32_t(spec.width);
+    d.raster.height = uint32_t(spec.height);
+    d.raster.integer_samples = !spec.format.is_floating_point();
+    // One vector for every channel, converted in place: no word crosses
+    // the bridge on its own.
+    d.words = std::make_unique<std::vector<uint32_t>>(n * size_t(spec.nchannels));
     size_t offset = 0;
     for (int c = 0; c < spec.nchannels; ++c) {
         OIIO::TypeDesc format = spec.channelformat(c);
@@ -159,28 +162,31 @@ Raster read_image(rust::Str path_str) {
         Channel ch;
         ch.name = name;
         ch.sample = format == OIIO::TypeUInt32 ? Sample::U32 : Sample::F32;
-        std::vector<uint32_t> words(n);
         OIIO::TypeDesc target = ch.sample == Sample::U32 ? OIIO::TypeUInt32 : OIIO::TypeFloat;
-        if (!OIIO::convert_image(1, spec.width, spec.height, 1, native.data() + offset, format,
-                                 stride, stride * spec.width, OIIO::AutoStride, words.data(),
-                                 target, sizeof(uint32_t), sizeof(uint32_t) * spec.width,
-                                 OIIO::AutoStride))
+        uint32_t *out = d.words->data() + size_t(c) * n;
+        if (format == target) {
+            // Words stored as they are wanted: a plain strided copy
+            // (convert_image would call memcpy once per pixel).
+            const unsigned char *in_px = native.data() + offset;
+            for (size_t i = 0; i < n; ++i, in_px += stride)
+                std::memcpy(out + i, in_px, sizeof(uint32_t));
+        } else if (!OIIO::convert_image(1, spec.width, spec.height, 1, native.data() + offset, format,
+                                 stride, stride * spec.width, OIIO::AutoStride, out, target,
+                                 sizeof(uint32_t),
+                                 sizeof(uint32_t) * spec.width, OIIO::AutoStride))
             fail(path, "cannot convert channel " + name + " from " + format.c_str(),
                  "");
-        ch.data.reserve(n);
-        for (uint32_t w : words)
-            ch.data.push_back(w);
-        r.channels.push_back(std::move(ch));
+        d.raster.channels.push_back(std::move(ch));
         offset += format.size();
     }
     for (const OIIO::ParamValue &p : spec.extra_attribs) {
         bool known = false;
         Attribute a = get_attribute(p, known);
         if (known)
-            r.attributes.push_back(std::move(a));
+            d.raster.attributes.push_back(std::move(a));
     }
     in->close();
-    return r;
+    return d;
 }
 
 }  // namespace oiio

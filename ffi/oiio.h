@@ -10,6 +10,7 @@ namespace rangewalk {
 namespace oiio {
 
 struct Raster;
+struct Decoded;
 
 // Writes every channel of `image` and its attributes to `path` in the
 // named OpenImageIO format ("openexr", "hdr", ...).
@@ -21,8 +22,9 @@ void write_rgb8(rust::Str path, uint32_t width, uint32_t height,
 
 // Reads the first subimage of `path`: 32-bit unsigned channels verbatim,
 // every other channel converted to float (integer formats normalized to
-// [0, 1]), plus the float and string attributes of its header.
-Raster read_image(rust::Str path);
+// [0, 1]), plus the float and string attributes of its header. The
+// channels' words are in `Decoded::words`, one channel after another.
+Decoded read_image(rust::Str path);
 
 }  // namespace oiio
 }  // namespace rangewalk

@@ -461,6 +461,10 @@ fn a_walk_writes_every_frame_an_animation_and_a_summary() {
         "4",
         "--time-interp",
         "reshade",
+        "--check-every",
+        "3",
+        "--check-spp",
+        "4",
         "--out",
         out.to_str().unwrap(),
     ]);
@@ -476,6 +480,30 @@ fn a_walk_writes_every_frame_an_animation_and_a_summary() {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["frames"], 5);
     assert!(summary["frames_per_second"].as_f64().unwrap() > 0.0);
+    // Frames 0 and 3 (every third) and 4 (the last) are checked: each
+    // summary figure is the error of the written frame against the
+    // written reference.
+    let checks = summary["checks"].as_array().unwrap();
+    let checked: Vec<u64> = checks
+        .iter()
+        .map(|c| c["frame"].as_u64().unwrap())
+        .collect();
+    assert_eq!(checked, [0, 3, 4]);
+    for c in checks {
+        let i = c["frame"].as_u64().unwrap();
+        let frame = rangewalk::image::read_exr(out.join(format!("frame-{i:04}.exr"))).unwrap();
+        let reference =
+            rangewalk::image::read_exr(out.join(format!("reference-{i:04}.exr"))).unwrap();
+        assert_eq!(reference.meta.time, frame.meta.time);
+        let e =
+            rangewalk::eval::metrics::compare(&frame.radiance, &reference.radiance, None).unwrap();
+        assert!((c["lrms"].as_f64().unwrap() - e.lrms).abs() <= 1e-9 * e.lrms.max(1.0));
+        assert!((c["bias"].as_f64().unwrap() - e.bias).abs() <= 1e-9);
+    }
+    assert!(!out.join("reference-0001.exr").exists());
+    // Three columns of 24 pixels and two rows of 16, 4-pixel gaps.
+    let sheet = rangewalk::image::png_io::read(out.join("contact.png")).unwrap();
+    assert_eq!((sheet.width, sheet.height), (3 * 24 + 2 * 4, 2 * 16 + 4));
     let apng = std::fs::read(out.join("walk.png")).unwrap();
     assert!(
         apng.windows(4).any(|w| w == b"acTL"),

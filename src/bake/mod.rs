@@ -525,8 +525,23 @@ impl Bake {
         })
     }
 
-    /// Reads image `k` (manifest order), checking its checksum.
+    /// Reads image `k` (manifest order) with its three light layers,
+    /// checking its checksum.
     pub fn read(&self, k: usize) -> Result<BaseImage> {
+        let (image, layers) = self.read_layers(k, &[DIRECT, INDIRECT, DIFFUSE_DIRECT])?;
+        let [direct, indirect, diffuse_direct]: [Vec<Vec3>; 3] =
+            layers.try_into().expect("three layers asked");
+        Ok(BaseImage {
+            image,
+            direct,
+            indirect,
+            diffuse_direct,
+        })
+    }
+
+    /// Reads image `k` and the named light layers (of [`DIRECT`],
+    /// [`INDIRECT`], [`DIFFUSE_DIRECT`]), checking its checksum.
+    pub fn read_layers(&self, k: usize, layers: &[&str]) -> Result<(RangeImage, Vec<Vec<Vec3>>)> {
         let e = self
             .manifest
             .images
@@ -539,20 +554,13 @@ impl Bake {
                 path.display()
             )
         };
-        let read = image::read_exr_with_layers_hashed(&path, &[DIRECT, INDIRECT, DIFFUSE_DIRECT]);
+        let read = image::read_exr_with_layers_hashed(&path, layers);
         let Ok((image, layers, sum)) = read else {
             return Err(damaged());
         };
         if e.fnv1a64.as_deref() != Some(manifest::hex(sum).as_str()) {
             return Err(damaged());
         }
-        let [direct, indirect, diffuse_direct]: [Vec<Vec3>; 3] =
-            layers.try_into().map_err(|_| damaged())?;
-        Ok(BaseImage {
-            image,
-            direct,
-            indirect,
-            diffuse_direct,
-        })
+        Ok((image, layers))
     }
 }

@@ -414,22 +414,41 @@ const STRIP_GAP: u32 = 4;
 /// to right, tone-mapped at one `exposure`.
 pub fn write_strip(
     path: impl AsRef<Path>,
-    (w, h): (u32, u32),
+    size: (u32, u32),
     images: &[&[Vec3]],
     exposure: f32,
 ) -> Result<()> {
-    let n = images.len() as u32;
-    let width = n * w + n.saturating_sub(1) * STRIP_GAP;
-    let mut rgb = vec![255u8; (width * h * 3) as usize];
-    for (i, img) in images.iter().enumerate() {
-        let tile = image::tonemap_srgb8(img, exposure);
-        let x0 = i as u32 * (w + STRIP_GAP);
-        for y in 0..h {
-            let from = (y * w * 3) as usize;
-            let to = ((y * width + x0) * 3) as usize;
-            rgb[to..to + (w * 3) as usize].copy_from_slice(&tile[from..from + (w * 3) as usize]);
+    write_sheet(path, size, &[images.to_vec()], exposure)
+}
+
+/// Rows of images (each `w x h` linear radiance) in one PNG, tone-mapped at
+/// one `exposure`; a row shorter than the longest is left white at its end.
+pub fn write_sheet(
+    path: impl AsRef<Path>,
+    (w, h): (u32, u32),
+    rows: &[Vec<&[Vec3]>],
+    exposure: f32,
+) -> Result<()> {
+    let gaps = |n: u32| n.saturating_sub(1) * STRIP_GAP;
+    let columns = rows.iter().map(Vec::len).max().unwrap_or(0) as u32;
+    let (width, height) = (
+        columns * w + gaps(columns),
+        rows.len() as u32 * h + gaps(rows.len() as u32),
+    );
+    let mut rgb = vec![255u8; (width * height * 3) as usize];
+    for (r, row) in rows.iter().enumerate() {
+        let y0 = r as u32 * (h + STRIP_GAP);
+        for (i, img) in row.iter().enumerate() {
+            let tile = image::tonemap_srgb8(img, exposure);
+            let x0 = i as u32 * (w + STRIP_GAP);
+            for y in 0..h {
+                let from = (y * w * 3) as usize;
+                let to = (((y0 + y) * width + x0) * 3) as usize;
+                rgb[to..to + (w * 3) as usize]
+                    .copy_from_slice(&tile[from..from + (w * 3) as usize]);
+            }
         }
     }
-    image::png_io::write(path.as_ref(), width, h, &rgb)
+    image::png_io::write(path.as_ref(), width, height, &rgb)
         .with_context(|| format!("writing {}", path.as_ref().display()))
 }

@@ -188,12 +188,18 @@ pub fn read_exr_with_layers_hashed(
 ) -> Result<(RangeImage, Vec<Vec<Vec3>>, u64)> {
     let path = path.as_ref();
     let planes = read_planes(path)?;
-    let hash = planes.content_hash();
-    let values = layers
-        .iter()
-        .map(|name| planes.rgb(name))
-        .collect::<Result<Vec<_>>>()
-        .with_context(|| format!("{}: not a base image", path.display()))?;
+    // The hash is one serial pass over every byte: overlap it with the
+    // layers' gathering.
+    let (hash, values) = rayon::join(
+        || planes.content_hash(),
+        || {
+            layers
+                .iter()
+                .map(|name| planes.rgb(name))
+                .collect::<Result<Vec<_>>>()
+        },
+    );
+    let values = values.with_context(|| format!("{}: not a base image", path.display()))?;
     let image = planes
         .into_range()
         .with_context(|| format!("{}: not a range image", path.display()))?;

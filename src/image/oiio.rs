@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use anyhow::{anyhow, Result};
+use rayon::prelude::*;
 
 use super::planes::{Attr, Plane, Planes};
 use crate::scene::Texture;
@@ -31,6 +32,13 @@ mod ffi {
         text: String,
     }
 
+    /// A file read: its channels' `data` are empty, their words are in
+    /// `words`, one whole channel after another in `channels`' order.
+    struct Decoded {
+        raster: Raster,
+        words: UniquePtr<CxxVector<u32>>,
+    }
+
     struct Raster {
         width: u32,
         height: u32,
@@ -49,7 +57,7 @@ mod ffi {
 
         fn write_image(path: &str, format: &str, image: &Raster) -> Result<()>;
         fn write_rgb8(path: &str, width: u32, height: u32, rgb: &[u8]) -> Result<()>;
-        fn read_image(path: &str) -> Result<Raster>;
+        fn read_image(path: &str) -> Result<Decoded>;
     }
 }
 
@@ -118,30 +126,44 @@ pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()
 
 /// Reads the first subimage of any file OpenImageIO understands.
 pub fn read(path: &Path) -> Result<Planes> {
-    Ok(planes(ffi::read_image(path_str(path)?)?))
+    planes(ffi::read_image(path_str(path)?)?)
 }
 
 /// Reads any image OpenImageIO understands as a linear-RGB texture. Integer
 /// samples are decoded from sRGB unless the file declares them linear.
 pub fn read_texture(path: &Path) -> Result<Texture> {
-    let raster = ffi::read_image(path_str(path)?)?;
-    let linear = raster
+    let decoded = ffi::read_image(path_str(path)?)?;
+    let linear = decoded
+        .raster
         .attributes
         .iter()
         .any(|a| a.name == "oiio:ColorSpace" && a.text.eq_ignore_ascii_case("linear"));
-    let srgb = raster.integer_samples && !linear;
-    planes(raster).into_texture(path, srgb)
+    let srgb = decoded.raster.integer_samples && !linear;
+    planes(decoded)?.into_texture(path, srgb)
 }
 
-fn planes(raster: ffi::Raster) -> Planes {
+fn planes(decoded: ffi::Decoded) -> Result<Planes> {
+    let ffi::Decoded { raster, words } = decoded;
+    let words = words
+        .as_ref()
+        .ok_or_else(|| anyhow!("the image reader returned no pixels"))?
+        .as_slice();
+    let n = raster.width as usize * raster.height as usize;
+    anyhow::ensure!(
+        words.len() == n * raster.channels.len(),
+        "the image reader returned {} words for {} channels of {n} pixels",
+        words.len(),
+        raster.channels.len()
+    );
     let channels = raster
         .channels
         .into_iter()
-        .map(|c| {
+        .zip(words.chunks_exact(n.max(1)))
+        .map(|(c, words)| {
             let plane = if c.sample == ffi::Sample::U32 {
-                Plane::U32(c.data)
+                Plane::U32(words.to_vec())
             } else {
-                Plane::F32(c.data.into_iter().map(f32::from_bits).collect())
+                Plane::F32(words.par_iter().map(|&w| f32::from_bits(w)).collect())
             };
             (c.name, plane)
         })
@@ -159,10 +181,10 @@ fn planes(raster: ffi::Raster) -> Planes {
             Some((a.name, attr))
         })
         .collect();
-    Planes {
+    Ok(Planes {
         width: raster.width,
         height: raster.height,
         channels,
         attributes,
-    }
+    })
 }

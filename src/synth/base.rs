@@ -11,9 +11,9 @@ use glam::Vec3;
 use half::f16;
 use rayon::prelude::*;
 
-use crate::bake::{Bake, BaseImage};
+use crate::bake::{Bake, DIFFUSE_DIRECT};
 use crate::camera::Camera;
-use crate::image::NO_HIT;
+use crate::image::{RangeImage, NO_HIT};
 use crate::scene::Scene;
 
 /// Side of the square tiles whose bounds cull what a frame cannot see.
@@ -107,16 +107,30 @@ fn to_half(c: Vec3, inv_scale: f32) -> [f16; 3] {
     [f16::from_f32(c.x), f16::from_f32(c.y), f16::from_f32(c.z)]
 }
 
+/// Decoded in software (inlined): `to_f32` asks the CPU for F16C on every
+/// value, which costs more than the conversion in the warp's inner loop.
+#[inline(always)]
 pub fn from_half(c: &[f16; 3]) -> Vec3 {
-    Vec3::new(c[0].to_f32(), c[1].to_f32(), c[2].to_f32())
+    Vec3::new(
+        c[0].to_f32_const(),
+        c[1].to_f32_const(),
+        c[2].to_f32_const(),
+    )
 }
 
 impl Base {
-    pub fn new(scene: &Scene, image: usize, view: usize, b: BaseImage) -> Result<Base> {
-        let img = b.image;
+    /// Prepares manifest image `image` of view `view` from the range image
+    /// and its diffuse direct layer.
+    pub fn new(
+        scene: &Scene,
+        image: usize,
+        view: usize,
+        img: RangeImage,
+        diffuse_direct: &[Vec3],
+    ) -> Result<Base> {
         let n = img.len();
         ensure!(
-            b.diffuse_direct.len() == n,
+            diffuse_direct.len() == n,
             "base image {image}: layers and image differ in size"
         );
         let camera = img.meta.camera;
@@ -160,8 +174,7 @@ impl Base {
             })
             .collect();
         let radiance = img.radiance.par_iter().map(|&c| to_half(c, inv)).collect();
-        let diffuse_direct = b
-            .diffuse_direct
+        let diffuse_direct = diffuse_direct
             .par_iter()
             .map(|&c| to_half(c, inv))
             .collect();
@@ -203,10 +216,12 @@ impl Base {
                 .sum::<usize>()
     }
 
+    #[inline]
     pub fn radiance_at(&self, k: usize) -> Vec3 {
         from_half(&self.radiance[k]) * self.scale
     }
 
+    #[inline]
     pub fn diffuse_direct_at(&self, k: usize) -> Vec3 {
         from_half(&self.diffuse_direct[k]) * self.scale
     }
@@ -307,7 +322,8 @@ impl BaseCache {
             .get(k)
             .map(|e| e.view)
             .unwrap_or_default();
-        let base = Arc::new(Base::new(scene, k, view, bake.read(k)?)?);
+        let (image, layers) = bake.read_layers(k, &[DIFFUSE_DIRECT])?;
+        let base = Arc::new(Base::new(scene, k, view, image, &layers[0])?);
         self.load_seconds += start.elapsed().as_secs_f64();
         self.loads += 1;
         while !self.held.is_empty() && self.bytes() + base.bytes() > self.budget {

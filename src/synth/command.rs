@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, ensure, Context, Result};
 
 use super::walk::{self, WalkSettings};
 use super::{check_bake, view_space_warning, Blend, Fill, Options, Synthesizer, TimeInterp};
@@ -173,6 +173,13 @@ pub struct WalkArgs {
     /// Frames per second of scene time [default: the scene's].
     #[arg(long)]
     pub fps: Option<f32>,
+    /// Path-trace every n-th frame (and the last) too: their LRMS goes in
+    /// the summary, the frames side by side in contact.png.
+    #[arg(long)]
+    pub check_every: Option<usize>,
+    /// Samples per pixel of those reference frames.
+    #[arg(long, default_value_t = 256)]
+    pub check_spp: u32,
     #[command(flatten)]
     pub synth: SynthOptions,
 }
@@ -188,6 +195,18 @@ pub fn walk(args: &WalkArgs) -> Result<()> {
         fps: args.fps,
         options,
         exposure: args.synth.exposure,
+        check: match args.check_every {
+            None => None,
+            Some(0) => bail!("--check-every 0: give a frame interval of at least 1"),
+            Some(every) => {
+                ensure!(args.check_spp > 0, "--check-spp must be at least 1");
+                Some(walk::CheckSettings {
+                    every,
+                    spp: args.check_spp,
+                    seed: options.seed,
+                })
+            }
+        },
     };
     let s = walk::walk(&mut synth, &settings, &args.out)?;
     let holes: usize = s.holes.iter().sum();
@@ -208,5 +227,18 @@ pub fn walk(args: &WalkArgs) -> Result<()> {
             .map_or("unknown".to_string(), |b| format!("{:.0} MiB", b as f64 / (1 << 20) as f64)),
         s.bytes_per_base_pixel
     );
+    if !s.checks.is_empty() {
+        let n = s.checks.len() as f64;
+        let lrms = s.checks.iter().map(|c| c.lrms).sum::<f64>() / n;
+        let bias = s.checks.iter().map(|c| c.bias).sum::<f64>() / n;
+        let seconds: f64 = s.checks.iter().map(|c| c.reference_seconds).sum();
+        println!(
+            "checked {} frame(s) against {}-spp path-traced references ({seconds:.3} s to render): mean LRMS {lrms:.4}, mean bias {:+.1}%; {} shows them, synthesized above reference",
+            s.checks.len(),
+            args.check_spp,
+            100.0 * bias,
+            s.out.join("contact.png").display()
+        );
+    }
     Ok(())
 }

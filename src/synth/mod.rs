@@ -29,7 +29,7 @@ mod warp;
 
 pub use base::{Base, BaseCache, BYTES_PER_PIXEL};
 pub use warp::Blend;
-use warp::{Accum, Pass, Target, WarpSettings, SKY_Z};
+use warp::{Accum, Pass, Target, Twin, WarpSettings, SKY_Z};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -260,6 +260,7 @@ impl<'a> Synthesizer<'a> {
                         moves: Vec::new(),
                         weight: 1.0,
                         alpha: if later { weight } else { 0.0 },
+                        twin: None,
                     })
                     .collect()
             };
@@ -274,17 +275,36 @@ impl<'a> Synthesizer<'a> {
                 .map(|(a, b)| blend_linear(a, b))
                 .collect()
         } else {
+            // A sample of the other time still claims its pixel (what a
+            // moving object uncovered) when nothing nearer in time does.
+            let in_time = |i: usize| wanted[i].1.max(1e-3);
+            // The two times of one view follow each other in `wanted`,
+            // nearer first; the nearer carries what they share.
+            let twin_of = |i: usize| -> Option<Twin> {
+                let same = |j: usize| {
+                    let (a, b) = (&bases[i], &bases[j]);
+                    a.view == b.view && a.camera == b.camera
+                };
+                if i + 1 < bases.len() && same(i + 1) {
+                    Some(Twin::Carries {
+                        base: &bases[i + 1],
+                        weight: in_time(i + 1),
+                    })
+                } else if i > 0 && same(i - 1) {
+                    Some(Twin::CarriedBy(&bases[i - 1]))
+                } else {
+                    None
+                }
+            };
             let passes: Vec<Pass> = bases
                 .iter()
-                .zip(&wanted)
-                .map(|(b, &(_, weight, _))| Pass {
+                .enumerate()
+                .map(|(i, b)| Pass {
                     base: b,
                     moves: moves_of(b),
-                    // A sample of the other time still claims its pixel
-                    // (what a moving object uncovered) when nothing nearer
-                    // in time does.
-                    weight: weight.max(1e-3),
+                    weight: in_time(i),
                     alpha: 0.0,
+                    twin: twin_of(i),
                 })
                 .collect();
             let mut buffer = vec![Accum::default(); n];
@@ -326,7 +346,8 @@ impl<'a> Synthesizer<'a> {
         Ok((image, stats))
     }
 
-    fn engine_at(&mut self, t: f32) -> Result<&dyn InstancedEngine> {
+    /// The scene's ray engine (built on first use) posed at `t`.
+    pub(crate) fn engine_at(&mut self, t: f32) -> Result<&dyn InstancedEngine> {
         if self.engine.is_none() {
             let backend = self.bake.manifest.settings.backend;
             self.engine = Some(

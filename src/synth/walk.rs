@@ -10,8 +10,14 @@ use std::time::Instant;
 use anyhow::{bail, ensure, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use glam::Vec3;
+
 use super::{view_space_warning, FrameStats, Options, Synthesizer};
-use crate::image;
+use crate::camera::Camera;
+use crate::eval::metrics;
+use crate::eval::summary::write_sheet;
+use crate::image::{self, RangeImage};
+use crate::render::{self, RenderSettings};
 
 /// What a walk writes and how.
 #[derive(Clone, Debug)]
@@ -23,6 +29,30 @@ pub struct WalkSettings {
     pub fps: Option<f32>,
     pub options: Options,
     pub exposure: f32,
+    /// Frames to path-trace as well, to measure the synthesis against.
+    pub check: Option<CheckSettings>,
+}
+
+/// Which frames a walk checks against path-traced references, and how
+/// converged those are.
+#[derive(Clone, Copy, Debug)]
+pub struct CheckSettings {
+    /// Every `every`-th frame from the first, and the last.
+    pub every: usize,
+    pub spp: u32,
+    pub seed: u64,
+}
+
+/// One frame checked against its path-traced reference.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FrameCheck {
+    pub frame: usize,
+    pub time: f32,
+    /// Relative luminance RMS error and bias of the synthesized frame.
+    pub lrms: f64,
+    pub bias: f64,
+    pub reference_spp: u32,
+    pub reference_seconds: f64,
 }
 
 /// What a walk did.
@@ -45,6 +75,9 @@ pub struct WalkSummary {
     /// Peak resident memory of the process (bytes), where the system says.
     pub peak_resident_bytes: Option<u64>,
     pub warnings: Vec<String>,
+    /// Frames checked against path-traced references (`contact.png` shows
+    /// them, synthesized above reference).
+    pub checks: Vec<FrameCheck>,
     pub out: PathBuf,
 }
 
@@ -86,6 +119,8 @@ pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Res
     let start = Instant::now();
     let mut stats: Vec<FrameStats> = Vec::with_capacity(times.len());
     let mut previews: Vec<Vec<u8>> = Vec::with_capacity(times.len());
+    let mut checks = Vec::new();
+    let mut sheet: Vec<(Vec<Vec3>, Vec<Vec3>)> = Vec::new();
     for (i, &t) in times.iter().enumerate() {
         let desc = path.at(t);
         let camera = desc
@@ -104,6 +139,24 @@ pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Res
             settings.exposure,
         )?;
         previews.push(image::tonemap_srgb8(&frame.radiance, settings.exposure));
+        let last = i + 1 == times.len();
+        if let Some(c) = settings.check.filter(|c| i % c.every.max(1) == 0 || last) {
+            bar.set_message(format!("path-tracing frame {i} at {} spp", c.spp));
+            let reference = reference_frame(synth, &camera, t, &c)
+                .with_context(|| format!("the reference of frame {i} (t = {t})"))?;
+            image::write_exr(staging.join(format!("reference-{i:04}.exr")), &reference.0)?;
+            let e = metrics::compare(&frame.radiance, &reference.0.radiance, None)
+                .with_context(|| format!("frame {i} against its reference"))?;
+            checks.push(FrameCheck {
+                frame: i,
+                time: t,
+                lrms: e.lrms,
+                bias: e.bias,
+                reference_spp: c.spp,
+                reference_seconds: reference.1,
+            });
+            sheet.push((frame.radiance.clone(), reference.0.radiance));
+        }
         bar.set_message(format!(
             "{:.1} ms/frame",
             1e3 * (s.seconds - s.load_seconds)
@@ -119,6 +172,18 @@ pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Res
         fps,
         &previews,
     )?;
+    if !sheet.is_empty() {
+        let rows: Vec<Vec<&[Vec3]>> = vec![
+            sheet.iter().map(|(s, _)| s.as_slice()).collect(),
+            sheet.iter().map(|(_, r)| r.as_slice()).collect(),
+        ];
+        write_sheet(
+            staging.join("contact.png"),
+            (settings.width, settings.height),
+            &rows,
+            settings.exposure,
+        )?;
+    }
     let synthesis_seconds: f64 = stats.iter().map(|s| s.seconds - s.load_seconds).sum();
     let load_seconds: f64 = stats.iter().map(|s| s.load_seconds).sum();
     let mut summary = WalkSummary {
@@ -135,6 +200,7 @@ pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Res
         bytes_per_base_pixel: super::BYTES_PER_PIXEL,
         peak_resident_bytes: peak_resident_bytes(),
         warnings,
+        checks,
         out: out.to_path_buf(),
     };
     let text = serde_json::to_string_pretty(&summary).context("encoding the walk summary")?;
@@ -147,6 +213,25 @@ pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Res
         .with_context(|| format!("renaming {} to {}", staging.display(), out.display()))?;
     summary.out = out.to_path_buf();
     Ok(summary)
+}
+
+/// The path-traced frame (the path tracer of `rangewalk render`) and the
+/// seconds it took.
+fn reference_frame(
+    synth: &mut Synthesizer,
+    camera: &Camera,
+    t: f32,
+    c: &CheckSettings,
+) -> Result<(RangeImage, f64)> {
+    let scene = synth.scene;
+    let engine = synth.engine_at(t)?;
+    let settings = RenderSettings {
+        spp: c.spp,
+        max_depth: None,
+        seed: c.seed,
+    };
+    let (image, stats) = render::render(scene, engine, camera, t, &settings)?;
+    Ok((image, stats.seconds))
 }
 
 /// A fresh `<out>.partial` beside `out`.

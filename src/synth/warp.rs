@@ -22,8 +22,10 @@ const MAX_WEIGHT: f32 = 1000.0;
 /// sample covers one pixel.
 const MAX_SPLAT: f32 = 64.0;
 
-/// What a frame pixel has gathered.
+/// What a frame pixel has gathered: one cache line, so that a deposit
+/// touches one line.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(align(64))]
 pub struct Accum {
     /// Distance from the frame's camera; 0 where nothing arrived.
     pub z: f32,
@@ -60,6 +62,57 @@ pub struct Pass<'a> {
     pub weight: f32,
     /// The time fraction this pass stands for (linear blending).
     pub alpha: f32,
+    /// The same view's image at the other bracketing time, whose pixels on
+    /// surfaces that do not move are the same world points: they are
+    /// projected once, by the pass that carries them.
+    pub twin: Option<Twin<'a>>,
+}
+
+/// How a pass shares the pixels it has in common with its twin.
+#[derive(Clone, Copy)]
+pub enum Twin<'a> {
+    /// This pass projects the shared pixels with the twin's radiance
+    /// blended in at the twin's weight in time.
+    Carries { base: &'a Base, weight: f32 },
+    /// The twin's pass projects the shared pixels; this one the rest.
+    CarriedBy(&'a Base),
+}
+
+impl Twin<'_> {
+    fn base(&self) -> &Base {
+        match self {
+            Twin::Carries { base, .. } | Twin::CarriedBy(base) => base,
+        }
+    }
+}
+
+impl Pass<'_> {
+    /// Whether pixel `k` shows the same unmoving point in this pass's base
+    /// and in its twin's (both are images of one camera).
+    #[inline(always)]
+    fn shared(&self, k: usize) -> bool {
+        let Some(twin) = &self.twin else {
+            return false;
+        };
+        let (a, b) = (self.base, twin.base());
+        let o = a.object[k];
+        o == b.object[k]
+            && a.primitive[k] == b.primitive[k]
+            && if o == SKY {
+                a.points[k] == b.points[k]
+            } else {
+                self.moves.get(o as usize).copied().flatten().is_none()
+            }
+    }
+
+    /// Whether tile `t` shows no moving object in this pass's base nor in
+    /// its twin's: then every pixel of it is shared (one camera's centre
+    /// rays meet the same unmoving surfaces).
+    fn tile_shared(&self, t: usize) -> bool {
+        self.twin.as_ref().is_some_and(|twin| {
+            self.base.tiles[t].moving.is_empty() && twin.base().tiles[t].moving.is_empty()
+        })
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -262,6 +315,9 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
                 .enumerate()
                 .filter_map(|(t, tile)| {
                     let (a, b) = target.tile_rows(tile, &pass.moves)?;
+                    if matches!(pass.twin, Some(Twin::CarriedBy(_))) && pass.tile_shared(t) {
+                        return None;
+                    }
                     (b > a).then_some((i as u32, t as u32, a, b))
                 })
                 .collect()
@@ -282,8 +338,7 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
             let mut scratch = Vec::with_capacity(((TILE + 1) * (TILE + 1)) as usize);
             for &(i, t) in items {
                 let pass = &passes[i as usize];
-                let tile = &pass.base.tiles[t as usize];
-                splat_tile(target, pass, tile, settings, rows, y0, &mut scratch);
+                splat_tile(target, pass, t as usize, settings, rows, y0, &mut scratch);
             }
         });
 }
@@ -293,13 +348,15 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
 fn splat_tile(
     target: &Target,
     pass: &Pass,
-    tile: &Tile,
+    t: usize,
     settings: &WarpSettings,
     rows: &mut [Accum],
     y0: u32,
     scratch: &mut Vec<Option<Projected>>,
 ) {
     let base = pass.base;
+    let tile = &base.tiles[t];
+    let all_shared = pass.tile_shared(t);
     let (bw, bh) = (base.width(), base.height());
     let fw = target.camera.width;
     let band_rows = rows.len() as u32 / fw;
@@ -358,6 +415,10 @@ fn splat_tile(
             let li = ((y - tile.y0) * sw + (x - tile.x0)) as usize;
             let Some(s) = scratch[li] else { continue };
             let k = (y * bw + x) as usize;
+            let shared = all_shared || pass.shared(k);
+            if shared && matches!(pass.twin, Some(Twin::CarriedBy(_))) {
+                continue;
+            }
             // Weight: how close the base's ray is to the frame's ray,
             // 1/sin of the angle between them (sky: the same direction).
             let weight = if s.sky {
@@ -366,15 +427,32 @@ fn splat_tile(
                 let (a, b) = (base.points[k] - base.camera.position, s.point - cam);
                 let sin2 = a.cross(b).length_squared() / (a.length_squared() * b.length_squared());
                 (1.0 / sin2).sqrt().min(MAX_WEIGHT)
-            } * pass.weight;
+            };
+            let mut radiance = base.radiance_at(k);
+            let mut diffuse_direct = if settings.diffuse_direct {
+                base.diffuse_direct_at(k)
+            } else {
+                Vec3::ZERO
+            };
+            let mut in_time = pass.weight;
+            if let (true, Some(Twin::Carries { base: twin, weight })) = (shared, pass.twin) {
+                // Nearest-first blending keeps the nearer time's value
+                // alone, as if the twin's sample had arrived second.
+                if settings.blend == Blend::Average {
+                    let sum = pass.weight + weight;
+                    radiance = (radiance * pass.weight + twin.radiance_at(k) * weight) / sum;
+                    if settings.diffuse_direct {
+                        diffuse_direct = (diffuse_direct * pass.weight
+                            + twin.diffuse_direct_at(k) * weight)
+                            / sum;
+                    }
+                    in_time = sum;
+                }
+            }
             let sample = Sample {
-                weight,
-                radiance: base.radiance_at(k),
-                diffuse_direct: if settings.diffuse_direct {
-                    base.diffuse_direct_at(k)
-                } else {
-                    Vec3::ZERO
-                },
+                weight: weight * in_time,
+                radiance,
+                diffuse_direct,
                 alpha: pass.alpha,
                 point: s.point,
                 object: base.object[k],

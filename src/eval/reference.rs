@@ -116,7 +116,8 @@ pub fn path_trace(
     Ok((img.radiance, seconds))
 }
 
-fn path_trace_image(
+/// [`path_trace`], the whole range image.
+pub(crate) fn path_trace_image(
     scene: &Scene,
     engine: &mut dyn InstancedEngine,
     camera: &Camera,

@@ -329,7 +329,7 @@ impl<'a> Synthesizer<'a> {
         write_pixels(self.scene, &poses_t, &pixels, &mut image);
         if opts.time_interp == TimeInterp::Reshade {
             let scene = self.scene;
-            let engine = self.engine_at(t)?;
+            let engine = &*self.engine_at(t)?;
             stats.mirror_misses = reshade::apply(
                 scene,
                 engine,
@@ -347,7 +347,7 @@ impl<'a> Synthesizer<'a> {
     }
 
     /// The scene's ray engine (built on first use) posed at `t`.
-    pub(crate) fn engine_at(&mut self, t: f32) -> Result<&dyn InstancedEngine> {
+    pub(crate) fn engine_at(&mut self, t: f32) -> Result<&mut dyn InstancedEngine> {
         if self.engine.is_none() {
             let backend = self.bake.manifest.settings.backend;
             self.engine = Some(
@@ -357,7 +357,7 @@ impl<'a> Synthesizer<'a> {
         }
         let engine = self.engine.as_mut().expect("built above");
         engine.set_transforms(&self.scene.at(t))?;
-        Ok(&**engine)
+        Ok(&mut **engine)
     }
 }
 

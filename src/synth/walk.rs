@@ -13,11 +13,10 @@ use indicatif::{ProgressBar, ProgressStyle};
 use glam::Vec3;
 
 use super::{view_space_warning, FrameStats, Options, Synthesizer};
-use crate::camera::Camera;
 use crate::eval::metrics;
+use crate::eval::reference::path_trace_image;
 use crate::eval::summary::write_sheet;
-use crate::image::{self, RangeImage};
-use crate::render::{self, RenderSettings};
+use crate::image;
 
 /// What a walk writes and how.
 #[derive(Clone, Debug)]
@@ -142,7 +141,9 @@ pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Res
         let last = i + 1 == times.len();
         if let Some(c) = settings.check.filter(|c| i % c.every.max(1) == 0 || last) {
             bar.set_message(format!("path-tracing frame {i} at {} spp", c.spp));
-            let reference = reference_frame(synth, &camera, t, &c)
+            let scene = synth.scene;
+            let engine = synth.engine_at(t)?;
+            let reference = path_trace_image(scene, engine, &camera, t, c.spp, c.seed)
                 .with_context(|| format!("the reference of frame {i} (t = {t})"))?;
             image::write_exr(staging.join(format!("reference-{i:04}.exr")), &reference.0)?;
             let e = metrics::compare(&frame.radiance, &reference.0.radiance, None)
@@ -213,25 +214,6 @@ pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Res
         .with_context(|| format!("renaming {} to {}", staging.display(), out.display()))?;
     summary.out = out.to_path_buf();
     Ok(summary)
-}
-
-/// The path-traced frame (the path tracer of `rangewalk render`) and the
-/// seconds it took.
-fn reference_frame(
-    synth: &mut Synthesizer,
-    camera: &Camera,
-    t: f32,
-    c: &CheckSettings,
-) -> Result<(RangeImage, f64)> {
-    let scene = synth.scene;
-    let engine = synth.engine_at(t)?;
-    let settings = RenderSettings {
-        spp: c.spp,
-        max_depth: None,
-        seed: c.seed,
-    };
-    let (image, stats) = render::render(scene, engine, camera, t, &settings)?;
-    Ok((image, stats.seconds))
 }
 
 /// A fresh `<out>.partial` beside `out`.

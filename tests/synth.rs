@@ -109,9 +109,12 @@ fn a_base_reprojected_into_its_own_camera_is_the_base() {
     let base = baked.read(0).unwrap().image;
     let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
     for fill in [Fill::None, Fill::Both] {
+        // Reprojection alone: tracing the light replaces the base's own
+        // pixels there.
         let opts = Options {
             fill,
             bases: 1,
+            light_rays: 0,
             ..Options::default()
         };
         let (frame, stats) = synth
@@ -165,6 +168,7 @@ fn a_pinhole_frame_from_a_sphere_base_at_its_point_is_the_base_resampled() {
     let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
     let opts = Options {
         bases: 1,
+        light_rays: 0,
         ..Options::default()
     };
     let (frame, stats) = synth.frame(&camera, 0.0, &opts).unwrap();
@@ -231,9 +235,8 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
     let all = metrics::compare(&both.radiance, &reference.radiance, None).unwrap();
     // Inside surfaces (pixels whose neighbours show the same object): the
     // shading carried over from the bases, within the noise of their 16
-    // samples per pixel. Edges are resampled from one or two base pixels
-    // each, and the emitter's, 20 times brighter than the walls, then
-    // dominate a whole frame's LRMS; the whole frame's bias bounds them.
+    // samples per pixel. Other edges are resampled from one or two base
+    // pixels each; the whole frame's bias bounds them.
     let (w, h) = (camera.width as i64, camera.height as i64);
     let id =
         |x: i64, y: i64| reference.object_id[(y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize];
@@ -248,8 +251,30 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
         "LRMS {:.4} (all pixels {:.4}), bias {:+.4}",
         e.lrms, all.lrms, all.bias
     );
+    // The light: each frame pixel takes one base pixel, and where the light
+    // meets the ceiling that pixel is all light or all ceiling while the
+    // render sees the fraction each covers; tracing the light's pixels
+    // must take away the larger part of the whole frame's error.
+    let untraced = Options {
+        light_rays: 0,
+        ..Options::default()
+    };
+    let (plain, plain_stats) = synth.frame(&camera, 0.0, &untraced).unwrap();
+    let plain = metrics::compare(&plain.radiance, &reference.radiance, None).unwrap();
+    eprintln!(
+        "whole frame: LRMS {:.4} with {} pixels at the light traced, {:.4} without",
+        all.lrms, stats.light_pixels, plain.lrms
+    );
+    assert_eq!(plain_stats.light_pixels, 0);
     assert!(e.lrms < 0.2, "LRMS {:.4} against a 1024-spp render", e.lrms);
     assert!(all.bias.abs() < 0.03, "bias {:+.4}", all.bias);
+    assert!(stats.light_pixels > 0, "the light's rim is traced");
+    assert!(
+        all.lrms < 0.5 * plain.lrms,
+        "whole frame: LRMS {:.4} traced, {:.4} not",
+        all.lrms,
+        plain.lrms
+    );
     // Frame pixels finer than the bases': without fill, pixels between
     // projected samples and what neither base saw stay holes; with both
     // fills none does.

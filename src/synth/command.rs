@@ -39,6 +39,10 @@ pub struct SynthOptions {
     /// Light samples per pixel when re-shading.
     #[arg(long, default_value_t = 4)]
     pub reshade_samples: u32,
+    /// Rays per side of a pixel at or beside a light, traced to find what
+    /// fraction of it the light covers; 0 keeps lights as reprojected.
+    #[arg(long, default_value_t = 4)]
+    pub light_rays: u32,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Memory for bases held between frames, in MiB.
@@ -69,6 +73,7 @@ impl SynthOptions {
             tolerance: self.tolerance,
             fill_reach: self.fill_reach,
             reshade_samples: self.reshade_samples,
+            light_rays: self.light_rays,
             seed: self.seed,
         })
     }
@@ -133,7 +138,7 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
         )?;
     }
     println!(
-        "{}: {}x{} at t = {} s from {} base image(s) ({}): {:.1} ms synthesis + {:.3} s reading bases; {} hole pixel(s), {} filled{}",
+        "{}: {}x{} at t = {} s from {} base image(s) ({}): {:.1} ms synthesis + {:.3} s reading bases; {} hole pixel(s), {} filled, {} pixel(s) at lights traced{}",
         args.out.display(),
         frame.width,
         frame.height,
@@ -149,6 +154,7 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
         stats.load_seconds,
         stats.holes,
         stats.filled,
+        stats.light_pixels,
         if options.time_interp == TimeInterp::Reshade {
             format!(", {} mirror pixel(s) no base showed", stats.mirror_misses)
         } else {

@@ -23,6 +23,7 @@ use crate::scene::{Scene, ViewSpace};
 pub mod base;
 pub mod command;
 mod fill;
+mod lights;
 mod reshade;
 pub mod walk;
 mod warp;
@@ -71,6 +72,8 @@ pub struct Options {
     pub fill_reach: u16,
     /// Light samples per pixel when re-shading.
     pub reshade_samples: u32,
+    /// Rays per side of a pixel at or beside a light ([`lights`]); 0: none.
+    pub light_rays: u32,
     pub seed: u64,
 }
 
@@ -84,6 +87,7 @@ impl Default for Options {
             tolerance: 0.02,
             fill_reach: 32,
             reshade_samples: 4,
+            light_rays: 4,
             seed: 1,
         }
     }
@@ -104,6 +108,8 @@ pub struct FrameStats {
     pub filled: usize,
     /// Mirror pixels whose reflection no base showed (kept as projected).
     pub mirror_misses: usize,
+    /// Pixels at or beside lights traced again.
+    pub light_pixels: usize,
 }
 
 /// Frames from one bake.
@@ -111,7 +117,7 @@ pub struct Synthesizer<'a> {
     pub scene: &'a Scene,
     pub bake: &'a Bake,
     cache: BaseCache,
-    /// Built on first use by re-shading.
+    /// Built on first use by re-shading or tracing lights' pixels.
     engine: Option<Box<dyn InstancedEngine>>,
 }
 
@@ -341,6 +347,11 @@ impl<'a> Synthesizer<'a> {
                 &mut image,
             )?;
         }
+        if opts.light_rays > 0 {
+            let scene = self.scene;
+            let engine = &*self.engine_at(t)?;
+            stats.light_pixels = lights::trace(scene, engine, t, opts.light_rays, &mut image);
+        }
         stats.load_seconds = self.cache.load_seconds - load_before;
         stats.seconds = start.elapsed().as_secs_f64();
         Ok((image, stats))
@@ -352,7 +363,7 @@ impl<'a> Synthesizer<'a> {
             let backend = self.bake.manifest.settings.backend;
             self.engine = Some(
                 accel::build(backend, &self.scene.geometry(), &self.scene.at(t))
-                    .with_context(|| format!("building the {backend} ray engine for re-shading"))?,
+                    .with_context(|| format!("building the {backend} ray engine for synthesis"))?,
             );
         }
         let engine = self.engine.as_mut().expect("built above");

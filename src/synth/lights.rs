@@ -1,0 +1,229 @@
+//! Lights' pixels, traced again at the frame's own pixels.
+//!
+//! A reprojected base pixel is one sample: where a light meets the dark
+//! ceiling around it, a frame pixel shows all of one side or all of the
+//! other, while a camera (and the reference) sees the fraction of the pixel
+//! each covers. With bases no finer than the frame no blend of base pixels
+//! recovers that fraction, and at a light forty times brighter than its
+//! surroundings those few pixels outweigh every other error in the frame;
+//! the base pixels at a light's rim, themselves such mixtures, are also
+//! splatted over the light's inside and darken it. Primary rays through
+//! the pixels at and beside a light find what each covers: a ray on the
+//! light takes its emission (or the light's own pixels where they are not
+//! darker), a ray beside it the frame's radiance at the nearest pixel that
+//! shows the same face and holds no part of a light. No light is
+//! computed anew, and nothing changes away from lights.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::accel::{Hit, Ray, RayEngine};
+use crate::image::{RangeImage, NO_HIT};
+use crate::render::surface::{SurfacePoint, SurfaceShading};
+use crate::scene::Scene;
+
+/// Cosine of the largest angle between the normals of one face's pixels.
+const FACE_COS: f32 = 0.9;
+
+/// How far (in pixels) a ray looks for a pixel showing the surface it hit.
+const REACH: i64 = 2;
+
+/// Replaces the radiance of every frame pixel at or beside a light by the
+/// mean of `side²` rays through it; `engine` holds the scene posed at
+/// `t`. Rays through the pixel's four corners go first: an outline that
+/// crosses the pixel crosses its sides, so where they all meet one surface
+/// (a light's inside) the ray through its centre is enough, and the full
+/// set is spent on the rim. Returns the number of pixels traced.
+pub fn trace(
+    scene: &Scene,
+    engine: &dyn RayEngine,
+    t: f32,
+    side: u32,
+    image: &mut RangeImage,
+) -> usize {
+    if side == 0 {
+        return 0;
+    }
+    let (w, h) = (image.width as usize, image.height as usize);
+    let ids = &image.object_id;
+    let radiance = &image.radiance;
+    let emissive: Vec<bool> = (0..scene.objects.len() as u32)
+        .map(|o| scene.material_of(o).emission.is_some())
+        .collect();
+    let emits = |id: u32| emissive.get(id as usize).copied().unwrap_or(false);
+    // Pixels on either side of a change of surface, and their 3×3
+    // neighbourhoods: every pixel whose neighbours do not all show its own
+    // surface lies in them (and a few more, a pixel from such a change).
+    let touched: Vec<bool> = (0..ids.len())
+        .into_par_iter()
+        .map(|k| {
+            let (x, y) = (k % w, k / w);
+            (x + 1 < w && ids[k] != ids[k + 1])
+                || (x > 0 && ids[k] != ids[k - 1])
+                || (y + 1 < h && ids[k] != ids[k + w])
+                || (y > 0 && ids[k] != ids[k - w])
+        })
+        .collect();
+    let interior: Vec<bool> = dilate(&touched, w, h).into_iter().map(|e| !e).collect();
+    let lit: Vec<bool> = dilate(
+        &ids.par_iter().map(|&id| emits(id)).collect::<Vec<_>>(),
+        w,
+        h,
+    );
+    let traced: Vec<usize> = (0..ids.len()).into_par_iter().filter(|&k| lit[k]).collect();
+    let shading = SurfaceShading::new(scene, engine, t);
+    let camera = image.meta.camera;
+    let around = Around {
+        ids,
+        interior: &interior,
+        lit: &lit,
+        normal: &image.normal,
+        radiance,
+        w: w as i64,
+        h: h as i64,
+    };
+    let corners = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)];
+    let full = hammersley(side * side);
+    // Mean radiance of rays through pixel `k` at `offsets`, and whether
+    // they all met one surface; `None` where part of the pixel lies
+    // outside a fisheye's circle.
+    let rays_through = |k: usize, offsets: &[(f32, f32)]| -> Option<(Vec3, bool)> {
+        let (x, y) = ((k % w) as f32, (k / w) as f32);
+        let rays: Vec<Ray> = offsets
+            .iter()
+            .map(|&(dx, dy)| camera.ray(x + dx, y + dy))
+            .collect::<Option<_>>()?;
+        let mut hits = vec![None; rays.len()];
+        engine.intersect_batch(&rays, &mut hits);
+        let object = |hit: &Option<Hit>| hit.map_or(NO_HIT, |h| h.object);
+        let one = hits.iter().all(|hit| object(hit) == object(&hits[0]));
+        let mut sum = Vec3::ZERO;
+        for ((&(dx, dy), ray), hit) in offsets.iter().zip(&rays).zip(&hits) {
+            let (sx, sy) = (x + dx, y + dy);
+            sum += match hit {
+                Some(hit) if emits(hit.object) => {
+                    // A surface is never darker than its emission: a
+                    // light's pixel that is holds a mixture with its dark
+                    // surroundings, and the emission stands in.
+                    let e = shading.emission(&SurfacePoint {
+                        object: hit.object,
+                        primitive: hit.primitive,
+                        position: ray.at(hit.t),
+                        wo: -ray.dir,
+                    });
+                    around
+                        .nearest(hit.object, hit.normal, sx, sy, true)
+                        .filter(|&c| luminance(c) >= luminance(e))
+                        .unwrap_or(e)
+                }
+                Some(hit) => around
+                    .nearest(hit.object, hit.normal, sx, sy, false)
+                    .unwrap_or(radiance[k]),
+                None => around
+                    .nearest(NO_HIT, Vec3::ZERO, sx, sy, false)
+                    .unwrap_or(radiance[k]),
+            };
+        }
+        Some((sum / rays.len() as f32, one))
+    };
+    let values: Vec<(usize, Vec3)> = traced
+        .par_iter()
+        .filter_map(|&k| {
+            let (_, one) = rays_through(k, &corners)?;
+            let offsets: &[(f32, f32)] = if one { &[(0.5, 0.5)] } else { &full };
+            Some((k, rays_through(k, offsets)?.0))
+        })
+        .collect();
+    let count = values.len();
+    for (k, c) in values {
+        image.radiance[k] = c;
+    }
+    count
+}
+
+/// `mask` grown by one pixel in every direction (a 3×3 dilation), in two
+/// passes of one row and one column.
+fn dilate(mask: &[bool], w: usize, h: usize) -> Vec<bool> {
+    let mut rows = vec![false; mask.len()];
+    rows.par_chunks_mut(w)
+        .zip(mask.par_chunks(w))
+        .for_each(|(out, row)| {
+            for x in 0..w {
+                out[x] = row[x.saturating_sub(1)] || row[x] || row[(x + 1).min(w - 1)];
+            }
+        });
+    let mut out = vec![false; mask.len()];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let (above, below) = (y.saturating_sub(1) * w, (y + 1).min(h - 1) * w);
+        for x in 0..w {
+            row[x] = rows[above + x] || rows[y * w + x] || rows[below + x];
+        }
+    });
+    out
+}
+
+/// The frame's pixels, for looking up what a traced ray saw.
+struct Around<'a> {
+    ids: &'a [u32],
+    /// Whether a pixel's neighbours all show its surface.
+    interior: &'a [bool],
+    /// Whether a pixel is at or beside a light: its value may hold part
+    /// of it.
+    lit: &'a [bool],
+    normal: &'a [Vec3],
+    radiance: &'a [Vec3],
+    w: i64,
+    h: i64,
+}
+
+impl Around<'_> {
+    /// Radiance of the pixel nearest `(sx, sy)` within [`REACH`] that shows
+    /// `object`, preferring pixels of the same face (normal within 25° of
+    /// `normal`; one object may be a box lit on one side) and then pixels
+    /// whose values cannot be mixtures (away from lights, then inside a
+    /// surface);
+    /// with `inside_only`, only pixels inside a surface.
+    fn nearest(
+        &self,
+        object: u32,
+        normal: Vec3,
+        sx: f32,
+        sy: f32,
+        inside_only: bool,
+    ) -> Option<Vec3> {
+        let (cx, cy) = (sx.floor() as i64, sy.floor() as i64);
+        let mut best: Option<((bool, bool, bool, f32), usize)> = None;
+        for v in (cy - REACH).max(0)..=(cy + REACH).min(self.h - 1) {
+            for u in (cx - REACH).max(0)..=(cx + REACH).min(self.w - 1) {
+                let j = (v * self.w + u) as usize;
+                if self.ids[j] != object || (inside_only && !self.interior[j]) {
+                    continue;
+                }
+                let d = (u as f32 + 0.5 - sx).powi(2) + (v as f32 + 0.5 - sy).powi(2);
+                let other_face = self.normal[j].dot(normal).abs() < FACE_COS;
+                let key = (other_face, self.lit[j], !self.interior[j], d);
+                if best.is_none_or(|(b, _)| key < b) {
+                    best = Some((key, j));
+                }
+            }
+        }
+        best.map(|(_, j)| self.radiance[j])
+    }
+}
+
+fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// `n` points of the Hammersley set in the unit square: stratified in x,
+/// van der Corput in y, so a straight edge in any direction splits them
+/// close to its area (a regular grid of the same size resolves an edge
+/// along its rows only to `1/√n`).
+fn hammersley(n: u32) -> Vec<(f32, f32)> {
+    (0..n)
+        .map(|i| {
+            let y = (i.reverse_bits() as f64 / 2f64.powi(32)) as f32 + 0.5 / n as f32;
+            ((i as f32 + 0.5) / n as f32, y.fract())
+        })
+        .collect()
+}

@@ -363,6 +363,24 @@ fn motion_compensation_and_reshading_remove_the_errors_they_are_for() {
         r < 0.8 * m,
         "where shadows move: reshade {r:.4}, motion {m:.4}"
     );
+    // At a base time nothing has moved since the bake: re-shading draws the
+    // same light samples at the frame's time as at the base's and must
+    // leave every pixel as the base holds it, adding no noise of its own.
+    let mut at_base = |time_interp| {
+        let opts = Options {
+            time_interp,
+            ..Options::default()
+        };
+        synth.frame(&camera, 0.0, &opts).unwrap().0
+    };
+    let (motion, reshade) = (at_base(TimeInterp::Motion), at_base(TimeInterp::Reshade));
+    let changed = (0..motion.len())
+        .filter(|&k| {
+            let (a, b) = (motion.radiance[k], reshade.radiance[k]);
+            (a - b).abs().max_element() > 1e-5 * a.abs().max_element().max(1e-3)
+        })
+        .count();
+    assert_eq!(changed, 0, "pixels re-shading changed at a base time");
 }
 
 fn rangewalk(args: &[&str]) -> std::process::Output {

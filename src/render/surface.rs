@@ -109,15 +109,22 @@ impl<'a> SurfaceShading<'a> {
     /// Direct light reflected towards the viewer by the diffuse lobe of each
     /// point's material: the mean of `samples` light samples per point
     /// (stratified when `samples` is a square), every shadow ray of the
-    /// slice traced in one batch. `first` numbers the first point for the
-    /// sampler, so that a frame's result does not depend on how it is cut.
+    /// slice traced in one batch. `streams` holds each point's sampler
+    /// stream (its pixel), so that a frame's result does not depend on how
+    /// it is cut, and one pixel shaded at two times draws the same samples.
     pub fn diffuse_direct(
         &self,
         points: &[SurfacePoint],
+        streams: &[u64],
         samples: u32,
         seed: u64,
-        first: u64,
     ) -> Result<Vec<Vec3>> {
+        ensure!(
+            points.len() == streams.len(),
+            "{} points with {} sampler streams",
+            points.len(),
+            streams.len()
+        );
         ensure!(samples > 0, "re-shading needs at least one light sample");
         let mut out = vec![Vec3::ZERO; points.len()];
         if self.lights.is_empty() {
@@ -145,7 +152,7 @@ impl<'a> SurfaceShading<'a> {
             let wo_l = frame.to_local(sp.wo);
             let lobe = Lobes::Diffuse { albedo };
             for s in 0..samples {
-                let mut rng = Pcg32::for_sample(seed, first + i as u64, s as u64);
+                let mut rng = Pcg32::for_sample(seed, streams[i], s as u64);
                 let (u, mut u1, mut u2) = (rng.next_f64(), rng.next_f32(), rng.next_f32());
                 if strata > 1 && s < strata * strata {
                     let inv = 1.0 / strata as f32;

@@ -295,6 +295,7 @@ impl<'a> Synthesizer<'a> {
                     Some(Twin::Carries {
                         base: &bases[i + 1],
                         weight: in_time(i + 1),
+                        alpha: bases[i + 1].time,
                     })
                 } else if i > 0 && same(i - 1) {
                     Some(Twin::CarriedBy(&bases[i - 1]))
@@ -309,7 +310,7 @@ impl<'a> Synthesizer<'a> {
                     base: b,
                     moves: moves_of(b),
                     weight: in_time(i),
-                    alpha: 0.0,
+                    alpha: b.time,
                     twin: twin_of(i),
                 })
                 .collect();
@@ -335,6 +336,17 @@ impl<'a> Synthesizer<'a> {
         write_pixels(self.scene, &poses_t, &pixels, &mut image);
         if opts.time_interp == TimeInterp::Reshade {
             let scene = self.scene;
+            let mut times: Vec<f32> = bases.iter().map(|b| b.time).collect();
+            times.sort_by(f32::total_cmp);
+            times.dedup();
+            let mut then = Vec::with_capacity(times.len());
+            for &time in &times {
+                let engine = &*self.engine_at(time)?;
+                let (w, cam) = (camera.width as usize, camera.position);
+                then.push(reshade::direct_then(
+                    scene, engine, t, time, &pixels, w, cam, opts,
+                )?);
+            }
             let engine = &*self.engine_at(t)?;
             stats.mirror_misses = reshade::apply(
                 scene,
@@ -343,6 +355,8 @@ impl<'a> Synthesizer<'a> {
                 &bases,
                 &wanted.iter().map(|w| w.1).collect::<Vec<_>>(),
                 &pixels,
+                &times,
+                &then,
                 opts,
                 &mut image,
             )?;

@@ -2,15 +2,22 @@
 //! surfaces with their objects, but what lights them was baked at the base
 //! times: a shadow that moves over a static floor would cross-fade. Here
 //! the diffuse-lobe direct light of every pixel (what the bake stored as
-//! `diffuse_direct`) is replaced by light samples with shadow rays against
-//! the scene posed at the frame's time; mirrors, whose radiance belongs to
-//! the base's direction and not the frame's, are traced again and what
-//! they reflect is looked up in the bases.
+//! `diffuse_direct`) is corrected by the change light samples with shadow
+//! rays find between the base times and the frame's; mirrors, whose
+//! radiance belongs to the base's direction and not the frame's, are traced
+//! again and what they reflect is looked up in the bases.
+//!
+//! The correction is a control variate: each pixel draws the same light
+//! samples at the frame's time and at every base time, so where nothing
+//! between the point and the light moved the two estimates are equal and
+//! the pixel keeps the bases' light, with the bases' samples per pixel
+//! (a frame's few samples would otherwise replace it with their noise);
+//! only where a shadow moved does the difference count.
 
 use std::sync::Arc;
 
 use anyhow::Result;
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
 use super::base::Base;
@@ -21,9 +28,93 @@ use crate::image::RangeImage;
 use crate::render::surface::{Reflected, SurfacePoint, SurfaceShading};
 use crate::scene::Scene;
 
+/// Per object: the motion from the frame's time `t` back to `then`.
+fn motions_back(scene: &Scene, t: f32, then: f32) -> Vec<Affine3A> {
+    scene
+        .objects
+        .iter()
+        .zip(scene.at(t))
+        .map(|(o, now)| o.motion.pose(then) * now.inverse())
+        .collect()
+}
+
+/// The surface point a frame pixel shows, moved from the frame's time by
+/// `back` (`None`: at the frame's time); `None` where it shows nothing.
+fn surface_point(a: &Accum, cam: Vec3, back: Option<&[Affine3A]>) -> Option<SurfacePoint> {
+    if a.is_empty() || a.z >= SKY_Z {
+        return None;
+    }
+    let wo = (cam - a.point).normalize_or_zero();
+    let (position, wo) = match back.and_then(|b| b.get(a.object as usize)) {
+        Some(m) => (
+            m.transform_point3(a.point),
+            m.transform_vector3(wo).normalize_or_zero(),
+        ),
+        None => (a.point, wo),
+    };
+    Some(SurfacePoint {
+        object: a.object,
+        primitive: a.primitive,
+        position,
+        wo,
+    })
+}
+
+/// The diffuse direct light of every frame pixel at base time `then`
+/// (its point moved there with its object), drawn with the samples the
+/// frame's own time draws; `engine` holds the scene posed at `then`.
+#[allow(clippy::too_many_arguments)]
+pub fn direct_then(
+    scene: &Scene,
+    engine: &dyn RayEngine,
+    t: f32,
+    then: f32,
+    pixels: &[Accum],
+    width: usize,
+    cam: Vec3,
+    opts: &Options,
+) -> Result<Vec<Vec3>> {
+    let shading = SurfaceShading::new(scene, engine, then);
+    let back = motions_back(scene, t, then);
+    let rows = pixels
+        .par_chunks(width)
+        .enumerate()
+        .map(|(y, acc)| -> Result<Vec<Vec3>> {
+            let (mut points, mut streams, mut at) = (Vec::new(), Vec::new(), Vec::new());
+            for (x, a) in acc.iter().enumerate() {
+                if let Some(sp) = surface_point(a, cam, Some(&back)) {
+                    points.push(sp);
+                    streams.push((y * width + x) as u64);
+                    at.push(x);
+                }
+            }
+            let direct =
+                shading.diffuse_direct(&points, &streams, opts.reshade_samples, opts.seed)?;
+            let mut row = vec![Vec3::ZERO; acc.len()];
+            for (x, d) in at.into_iter().zip(direct) {
+                row[x] = d;
+            }
+            Ok(row)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(rows.concat())
+}
+
+/// The light of `pixel` at its blend's mean base time `tau`, from the
+/// values at each of the base `times` (ascending), interpolated linearly.
+fn at_mean_time(times: &[f32], then: &[Vec<Vec3>], pixel: usize, tau: f32) -> Vec3 {
+    let i = times.partition_point(|&s| s <= tau).clamp(1, times.len()) - 1;
+    let Some(&next) = times.get(i + 1) else {
+        return then[i][pixel];
+    };
+    let f = ((tau - times[i]) / (next - times[i])).clamp(0.0, 1.0);
+    then[i][pixel].lerp(then[i + 1][pixel], f)
+}
+
 /// Re-shades `image` (made from `pixels`); `engine` holds the scene posed
-/// at `t`. Returns the number of mirror pixels whose reflection no base
-/// showed (they keep their projected radiance).
+/// at `t`, `then[i]` is [`direct_then`] at base time `times[i]`. Returns
+/// the number of mirror pixels whose reflection no base showed (they keep
+/// their projected radiance).
 #[allow(clippy::too_many_arguments)]
 pub fn apply(
     scene: &Scene,
@@ -32,24 +123,18 @@ pub fn apply(
     bases: &[Arc<Base>],
     weights: &[f32],
     pixels: &[Accum],
+    times: &[f32],
+    then: &[Vec<Vec3>],
     opts: &Options,
     image: &mut RangeImage,
 ) -> Result<usize> {
     let shading = SurfaceShading::new(scene, engine, t);
     let w = image.width as usize;
     let cam = image.meta.camera.position;
-    let poses_t = scene.at(t);
     // Per base: the motion from the frame's time back to the base's.
-    let back: Vec<Vec<glam::Affine3A>> = bases
+    let back: Vec<Vec<Affine3A>> = bases
         .iter()
-        .map(|b| {
-            scene
-                .objects
-                .iter()
-                .zip(&poses_t)
-                .map(|(o, now)| o.motion.pose(b.time) * now.inverse())
-                .collect()
-        })
+        .map(|b| motions_back(scene, t, b.time))
         .collect();
     let misses = image
         .radiance
@@ -57,18 +142,11 @@ pub fn apply(
         .zip(pixels.par_chunks(w))
         .enumerate()
         .map(|(y, (row, acc))| -> Result<usize> {
-            let mut points = Vec::with_capacity(w);
-            let mut at = Vec::with_capacity(w);
+            let (mut points, mut streams, mut at) = (Vec::new(), Vec::new(), Vec::new());
             let mut misses = 0;
             for (x, a) in acc.iter().enumerate() {
-                if a.is_empty() || a.z >= SKY_Z {
+                let Some(sp) = surface_point(a, cam, None) else {
                     continue;
-                }
-                let sp = SurfacePoint {
-                    object: a.object,
-                    primitive: a.primitive,
-                    position: a.point,
-                    wo: (cam - a.point).normalize_or_zero(),
                 };
                 if let Some((reflectance, reflected)) = shading.mirror(&sp) {
                     let seen = match reflected {
@@ -84,14 +162,14 @@ pub fn apply(
                     continue;
                 }
                 points.push(sp);
+                streams.push((y * w + x) as u64);
                 at.push(x);
             }
-            let first = (y * w) as u64;
-            let direct = shading.diffuse_direct(&points, opts.reshade_samples, opts.seed, first)?;
-            for (x, d) in at.into_iter().zip(direct) {
+            let now = shading.diffuse_direct(&points, &streams, opts.reshade_samples, opts.seed)?;
+            for ((x, d), k) in at.into_iter().zip(now).zip(streams) {
                 let a = &acc[x];
-                let kept = (a.radiance - a.diffuse_direct) / a.w;
-                row[x] = kept.max(Vec3::ZERO) + d;
+                let before = at_mean_time(times, then, k as usize, a.alpha / a.w);
+                row[x] = (a.radiance / a.w + d - before).max(Vec3::ZERO);
             }
             Ok(misses)
         })
@@ -105,7 +183,7 @@ pub fn apply(
 fn gather(
     bases: &[Arc<Base>],
     weights: &[f32],
-    back: &[Vec<glam::Affine3A>],
+    back: &[Vec<Affine3A>],
     object: u32,
     p: Vec3,
     tolerance: f32,

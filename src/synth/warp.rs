@@ -33,7 +33,9 @@ pub struct Accum {
     pub w: f32,
     pub radiance: Vec3,
     pub diffuse_direct: Vec3,
-    /// Weighted sum of the samples' time fractions (linear blending).
+    /// Weighted sum of the samples' time fractions (linear blending) or
+    /// base times (motion compensation: which times re-shading finds the
+    /// pixel's light blended from).
     pub alpha: f32,
     /// The heaviest sample's weight, world point (at the frame's time),
     /// object and primitive: the surface the pixel shows.
@@ -60,7 +62,8 @@ pub struct Pass<'a> {
     pub moves: Vec<Option<Affine3A>>,
     /// Weight of every sample of this pass (closeness in time).
     pub weight: f32,
-    /// The time fraction this pass stands for (linear blending).
+    /// The time fraction this pass stands for (linear blending), or its
+    /// base's time (motion compensation).
     pub alpha: f32,
     /// The same view's image at the other bracketing time, whose pixels on
     /// surfaces that do not move are the same world points: they are
@@ -72,8 +75,12 @@ pub struct Pass<'a> {
 #[derive(Clone, Copy)]
 pub enum Twin<'a> {
     /// This pass projects the shared pixels with the twin's radiance
-    /// blended in at the twin's weight in time.
-    Carries { base: &'a Base, weight: f32 },
+    /// blended in at the twin's weight in time (and its `alpha`).
+    Carries {
+        base: &'a Base,
+        weight: f32,
+        alpha: f32,
+    },
     /// The twin's pass projects the shared pixels; this one the rest.
     CarriedBy(&'a Base),
 }
@@ -434,8 +441,16 @@ fn splat_tile(
             } else {
                 Vec3::ZERO
             };
-            let mut in_time = pass.weight;
-            if let (true, Some(Twin::Carries { base: twin, weight })) = (shared, pass.twin) {
+            let (mut in_time, mut alpha) = (pass.weight, pass.alpha);
+            if let (
+                true,
+                Some(Twin::Carries {
+                    base: twin,
+                    weight,
+                    alpha: twin_alpha,
+                }),
+            ) = (shared, pass.twin)
+            {
                 // Nearest-first blending keeps the nearer time's value
                 // alone, as if the twin's sample had arrived second.
                 if settings.blend == Blend::Average {
@@ -446,6 +461,7 @@ fn splat_tile(
                             + twin.diffuse_direct_at(k) * weight)
                             / sum;
                     }
+                    alpha = (pass.alpha * pass.weight + twin_alpha * weight) / sum;
                     in_time = sum;
                 }
             }
@@ -453,7 +469,7 @@ fn splat_tile(
                 weight: weight * in_time,
                 radiance,
                 diffuse_direct,
-                alpha: pass.alpha,
+                alpha,
                 point: s.point,
                 object: base.object[k],
                 primitive: base.primitive[k],

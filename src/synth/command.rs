@@ -41,7 +41,7 @@ pub struct SynthOptions {
     pub reshade_samples: u32,
     /// Rays per side of a pixel at or beside a light, traced to find what
     /// fraction of it the light covers; 0 keeps lights as reprojected.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = Options::default().light_rays)]
     pub light_rays: u32,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,

@@ -87,7 +87,7 @@ impl Default for Options {
             tolerance: 0.02,
             fill_reach: 32,
             reshade_samples: 4,
-            light_rays: 4,
+            light_rays: 8,
             seed: 1,
         }
     }

@@ -9,6 +9,7 @@
 //! rows, in pass order, so the result does not depend on the thread count.
 
 use glam::{Affine3A, Vec2, Vec3};
+use half::{f16, slice::HalfFloatSliceExt};
 use rayon::prelude::*;
 
 use super::base::{Base, Bounds, Tile, SKY, TILE};
@@ -316,18 +317,31 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
         .par_iter()
         .enumerate()
         .map(|(i, pass)| {
-            pass.base
-                .tiles
-                .iter()
-                .enumerate()
-                .filter_map(|(t, tile)| {
-                    let (a, b) = target.tile_rows(tile, &pass.moves)?;
+            let base = pass.base;
+            let mut list = Vec::new();
+            for block in &base.blocks {
+                let seen = block.moving
+                    || block
+                        .fixed
+                        .is_some_and(|b| target.rows(&b, false).is_some())
+                    || block.sky.is_some_and(|b| target.rows(&b, true).is_some());
+                if !seen {
+                    continue;
+                }
+                for &t in &block.tiles {
+                    let t = t as usize;
+                    let Some((a, b)) = target.tile_rows(&base.tiles[t], &pass.moves) else {
+                        continue;
+                    };
                     if matches!(pass.twin, Some(Twin::CarriedBy(_))) && pass.tile_shared(t) {
-                        return None;
+                        continue;
                     }
-                    (b > a).then_some((i as u32, t as u32, a, b))
-                })
-                .collect()
+                    if b > a {
+                        list.push((i as u32, t as u32, a, b));
+                    }
+                }
+            }
+            list
         })
         .collect();
     for &(i, t, a, b) in lists.iter().flatten() {
@@ -342,7 +356,7 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
         .enumerate()
         .for_each(|(k, (rows, items))| {
             let y0 = k as u32 * band;
-            let mut scratch = Vec::with_capacity(((TILE + 1) * (TILE + 1)) as usize);
+            let mut scratch = Scratch::default();
             for &(i, t) in items {
                 let pass = &passes[i as usize];
                 splat_tile(target, pass, t as usize, settings, rows, y0, &mut scratch);
@@ -359,7 +373,7 @@ fn splat_tile(
     settings: &WarpSettings,
     rows: &mut [Accum],
     y0: u32,
-    scratch: &mut Vec<Option<Projected>>,
+    scratch: &mut Scratch,
 ) {
     let base = pass.base;
     let tile = &base.tiles[t];
@@ -371,6 +385,10 @@ fn splat_tile(
     let x_end = (tile.x0 + TILE + 1).min(bw);
     let y_end = (tile.y0 + TILE + 1).min(bh);
     let sw = x_end - tile.x0;
+    let Scratch {
+        projected: scratch,
+        layers,
+    } = scratch;
     scratch.clear();
     for y in tile.y0..y_end {
         for x in tile.x0..x_end {
@@ -407,6 +425,37 @@ fn splat_tile(
             scratch.push(projected);
         }
     }
+    // The tile's radiance (and diffuse direct light, and the twin's) as
+    // f32, converted a row at a time: one call per row lets the half-float
+    // conversion use the CPU's vector instructions where it has them.
+    let tw = (tile.x0 + TILE).min(bw) - tile.x0;
+    let twin = match pass.twin {
+        Some(Twin::Carries { base, .. }) => Some(base),
+        _ => None,
+    };
+    let wanted: [Option<&[[f16; 3]]>; 4] = [
+        Some(&base.radiance),
+        settings.diffuse_direct.then_some(&base.diffuse_direct[..]),
+        twin.map(|b| &b.radiance[..]),
+        twin.filter(|_| settings.diffuse_direct)
+            .map(|b| &b.diffuse_direct[..]),
+    ];
+    for (layer, out) in wanted.iter().zip(layers.iter_mut()) {
+        let Some(layer) = layer else { continue };
+        out.resize((3 * tw * TILE) as usize, 0.0);
+        for y in tile.y0..(tile.y0 + TILE).min(bh) {
+            let k = (y * bw + tile.x0) as usize;
+            let row = 3 * ((y - tile.y0) * tw) as usize;
+            layer[k..k + tw as usize]
+                .as_flattened()
+                .convert_to_f32_slice(&mut out[row..row + 3 * tw as usize]);
+        }
+    }
+    let [rad, direct, twin_rad, twin_direct] = &*layers;
+    let layer = |l: &[f32], x: u32, y: u32, scale: f32| {
+        let i = 3 * ((y - tile.y0) * tw + (x - tile.x0)) as usize;
+        Vec3::from_slice(&l[i..i + 3]) * scale
+    };
     let eps = settings.tolerance;
     // Neighbours on one triangle are one plane, however steeply the base
     // saw it; others must agree in depth (pinterp's test).
@@ -435,9 +484,9 @@ fn splat_tile(
                 let sin2 = a.cross(b).length_squared() / (a.length_squared() * b.length_squared());
                 (1.0 / sin2).sqrt().min(MAX_WEIGHT)
             };
-            let mut radiance = base.radiance_at(k);
+            let mut radiance = layer(rad, x, y, base.scale);
             let mut diffuse_direct = if settings.diffuse_direct {
-                base.diffuse_direct_at(k)
+                layer(direct, x, y, base.scale)
             } else {
                 Vec3::ZERO
             };
@@ -455,10 +504,11 @@ fn splat_tile(
                 // alone, as if the twin's sample had arrived second.
                 if settings.blend == Blend::Average {
                     let sum = pass.weight + weight;
-                    radiance = (radiance * pass.weight + twin.radiance_at(k) * weight) / sum;
+                    radiance =
+                        (radiance * pass.weight + layer(twin_rad, x, y, twin.scale) * weight) / sum;
                     if settings.diffuse_direct {
                         diffuse_direct = (diffuse_direct * pass.weight
-                            + twin.diffuse_direct_at(k) * weight)
+                            + layer(twin_direct, x, y, twin.scale) * weight)
                             / sum;
                     }
                     alpha = (pass.alpha * pass.weight + twin_alpha * weight) / sum;
@@ -560,6 +610,16 @@ fn splat_tile(
             }
         }
     }
+}
+
+/// What a band's task reuses from tile to tile.
+#[derive(Default)]
+struct Scratch {
+    /// The tile's pixels (and the row and column after it) projected.
+    projected: Vec<Option<Projected>>,
+    /// Radiance, diffuse direct light, the twin's radiance and diffuse
+    /// direct light of the tile's pixels, as f32 triples.
+    layers: [Vec<f32>; 4],
 }
 
 /// `⌊x⌋` without a call into libm (x86-64's baseline has no rounding

@@ -83,8 +83,9 @@ pub struct Tile {
 /// The union of a square of tiles' bounds.
 #[derive(Clone, Debug)]
 pub struct Block {
-    /// Indices of its tiles in [`Base::tiles`].
-    pub tiles: Vec<u32>,
+    /// Its first tile's column and row in the base's grid of tiles.
+    pub tx: u32,
+    pub ty: u32,
     pub fixed: Option<Bounds>,
     pub sky: Option<Bounds>,
     /// Whether a tile of it holds a moving object: such blocks are not
@@ -219,6 +220,14 @@ impl Base {
         })
     }
 
+    /// Indices in [`Base::tiles`] of the tiles of `block`.
+    pub fn tiles_of(&self, block: &Block) -> impl Iterator<Item = usize> {
+        let (tw, th) = (self.width().div_ceil(TILE), self.height().div_ceil(TILE));
+        let (tx, ty) = (block.tx, block.ty);
+        (ty..(ty + BLOCK).min(th))
+            .flat_map(move |y| (tx..(tx + BLOCK).min(tw)).map(move |x| (y * tw + x) as usize))
+    }
+
     pub fn width(&self) -> u32 {
         self.camera.width
     }
@@ -234,8 +243,7 @@ impl Base {
                 .iter()
                 .map(|t| 72 + 28 * t.moving.len())
                 .sum::<usize>()
-            + self.blocks.len() * 84
-            + self.tiles.len() * 4
+            + self.blocks.len() * std::mem::size_of::<Block>()
     }
 
     #[inline]
@@ -310,16 +318,15 @@ fn blocks(camera: &Camera, tiles: &[Tile]) -> Vec<Block> {
     for by in (0..th).step_by(BLOCK as usize) {
         for bx in (0..tw).step_by(BLOCK as usize) {
             let mut block = Block {
-                tiles: Vec::new(),
+                tx: bx,
+                ty: by,
                 fixed: None,
                 sky: None,
                 moving: false,
             };
             for ty in by..(by + BLOCK).min(th) {
                 for tx in bx..(bx + BLOCK).min(tw) {
-                    let t = ty * tw + tx;
-                    let tile = &tiles[t as usize];
-                    block.tiles.push(t);
+                    let tile = &tiles[(ty * tw + tx) as usize];
                     block.fixed = union(block.fixed, tile.fixed);
                     block.sky = union(block.sky, tile.sky);
                     block.moving |= !tile.moving.is_empty();

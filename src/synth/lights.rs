@@ -47,9 +47,7 @@ pub fn trace(
     let (w, h) = (image.width as usize, image.height as usize);
     let ids = &image.object_id;
     let radiance = &image.radiance;
-    let emissive: Vec<bool> = (0..scene.objects.len() as u32)
-        .map(|o| scene.material_of(o).emission.is_some())
-        .collect();
+    let emissive = emissive(scene);
     let emits = |id: u32| emissive.get(id as usize).copied().unwrap_or(false);
     // Pixels on either side of a change of surface, and their 3×3
     // neighbourhoods: every pixel whose neighbours do not all show its own
@@ -139,6 +137,23 @@ pub fn trace(
         image.radiance[k] = c;
     }
     count
+}
+
+/// Per object: whether it emits light.
+fn emissive(scene: &Scene) -> Vec<bool> {
+    (0..scene.objects.len() as u32)
+        .map(|o| scene.material_of(o).emission.is_some())
+        .collect()
+}
+
+/// Whether any pixel of `image` shows a light: a frame without one needs
+/// no ray engine for [`trace`].
+pub fn shows_a_light(scene: &Scene, image: &RangeImage) -> bool {
+    let emissive = emissive(scene);
+    image
+        .object_id
+        .par_iter()
+        .any(|&id| emissive.get(id as usize).copied().unwrap_or(false))
 }
 
 /// `mask` grown by one pixel in every direction (a 3×3 dilation), in two

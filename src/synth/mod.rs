@@ -117,8 +117,9 @@ pub struct Synthesizer<'a> {
     pub scene: &'a Scene,
     pub bake: &'a Bake,
     cache: BaseCache,
-    /// Built on first use by re-shading or tracing lights' pixels.
-    engine: Option<Box<dyn InstancedEngine>>,
+    /// Built on first use by re-shading or tracing lights' pixels, with
+    /// the time it is posed at.
+    engine: Option<(Box<dyn InstancedEngine>, f32)>,
 }
 
 /// Memory kept for bases by default: eight 2,600² bases fit.
@@ -340,9 +341,9 @@ impl<'a> Synthesizer<'a> {
             times.sort_by(f32::total_cmp);
             times.dedup();
             let mut then = Vec::with_capacity(times.len());
+            let (w, cam) = (camera.width as usize, camera.position);
             for &time in &times {
                 let engine = &*self.engine_at(time)?;
-                let (w, cam) = (camera.width as usize, camera.position);
                 then.push(reshade::direct_then(
                     scene, engine, t, time, &pixels, w, cam, opts,
                 )?);
@@ -361,7 +362,7 @@ impl<'a> Synthesizer<'a> {
                 &mut image,
             )?;
         }
-        if opts.light_rays > 0 {
+        if opts.light_rays > 0 && lights::shows_a_light(self.scene, &image) {
             let scene = self.scene;
             let engine = &*self.engine_at(t)?;
             stats.light_pixels = lights::trace(scene, engine, t, opts.light_rays, &mut image);
@@ -375,13 +376,15 @@ impl<'a> Synthesizer<'a> {
     pub(crate) fn engine_at(&mut self, t: f32) -> Result<&mut dyn InstancedEngine> {
         if self.engine.is_none() {
             let backend = self.bake.manifest.settings.backend;
-            self.engine = Some(
-                accel::build(backend, &self.scene.geometry(), &self.scene.at(t))
-                    .with_context(|| format!("building the {backend} ray engine for synthesis"))?,
-            );
+            let engine = accel::build(backend, &self.scene.geometry(), &self.scene.at(t))
+                .with_context(|| format!("building the {backend} ray engine for synthesis"))?;
+            self.engine = Some((engine, t));
         }
-        let engine = self.engine.as_mut().expect("built above");
-        engine.set_transforms(&self.scene.at(t))?;
+        let (engine, posed) = self.engine.as_mut().expect("built above");
+        if *posed != t {
+            engine.set_transforms(&self.scene.at(t))?;
+            *posed = t;
+        }
         Ok(&mut **engine)
     }
 }

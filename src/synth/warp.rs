@@ -328,8 +328,7 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
                 if !seen {
                     continue;
                 }
-                for &t in &block.tiles {
-                    let t = t as usize;
+                for t in base.tiles_of(block) {
                     let Some((a, b)) = target.tile_rows(&base.tiles[t], &pass.moves) else {
                         continue;
                     };

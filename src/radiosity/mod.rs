@@ -19,6 +19,7 @@ use std::collections::HashMap;
 use anyhow::{ensure, Result};
 use glam::Vec3;
 
+use crate::render::bsdf::Lobes;
 use crate::scene::{Bsdf, Scene};
 
 pub mod bake;
@@ -75,8 +76,8 @@ pub struct Patch {
     /// same as `corners` where a record stands for both sides; it then
     /// reports the side that receives more light.
     pub back: [u32; 3],
-    /// Diffuse albedo (textures averaged, the specular part of glossy
-    /// materials and mirrors left to the renderer's traced rays).
+    /// The share of incident light the surface reflects, carried on as
+    /// diffuse light: see [`transport_albedo`].
     pub reflectance: Vec3,
     /// Emitted radiance, zero for non-emitters.
     pub emission: Vec3,
@@ -182,7 +183,24 @@ pub fn record_sides(s: &Simplified) -> Vec<u8> {
     sides
 }
 
-/// The part of a material that radiosity transports: its diffuse albedo.
+/// What radiosity carries on from a surface: all the light it reflects,
+/// spread as if diffusely (textures averaged).
+///
+/// The glossy lobe and the mirror send their share in other directions,
+/// which a diffuse solver cannot follow; but leaving it out makes such a
+/// surface a sink, and a room lit mainly off a glossy floor renders too
+/// dark everywhere (docs/radiosity.md, "Energy the transport dropped").
+/// Only the transport uses this; shading at a rendered pixel applies
+/// [`diffuse_albedo`] to the records' irradiance and traces the rest.
+pub fn transport_albedo(bsdf: &Bsdf) -> Vec3 {
+    match bsdf {
+        Bsdf::Diffuse { .. } => diffuse_albedo(bsdf),
+        _ => Lobes::at(bsdf, None).hemispherical_albedo(),
+    }
+}
+
+/// The diffuse lobe's albedo (textures averaged): what the renderer
+/// multiplies the records' irradiance by.
 pub fn diffuse_albedo(bsdf: &Bsdf) -> Vec3 {
     match bsdf {
         Bsdf::Diffuse {
@@ -229,6 +247,11 @@ impl Simplified {
         let mut records = Vec::new();
         let mut index: HashMap<(u32, [i64; 3], [i32; 3]), u32> = HashMap::new();
         let mut patches = Vec::new();
+        let albedo: Vec<Vec3> = scene
+            .materials
+            .iter()
+            .map(|m| transport_albedo(&m.bsdf))
+            .collect();
         for (object, vertices) in triangles {
             let o = &scene.objects[object as usize];
             let m = &scene.materials[o.material];
@@ -237,7 +260,7 @@ impl Simplified {
                 vertices,
                 corners: [0; 3],
                 back: [0; 3],
-                reflectance: diffuse_albedo(&m.bsdf),
+                reflectance: albedo[o.material],
                 emission: m.emission.map_or(Vec3::ZERO, |e| e.radiance),
                 two_sided: m.emission.is_some_and(|e| e.two_sided),
             };

@@ -165,6 +165,9 @@ impl Refiner<'_> {
     /// source, `None` neither can be.
     fn which(&self, h: &Hierarchy, r: u32, s: u32) -> Option<bool> {
         let (nr, ns) = (h.node(r), h.node(s));
+        if spans_planes(nr) {
+            return Some(true);
+        }
         // A cluster close to the other end must open up, whatever its size.
         let overlap = nr.center.distance(ns.center) <= nr.radius + ns.radius;
         if overlap && (nr.cluster || ns.cluster) {
@@ -198,6 +201,9 @@ impl Refiner<'_> {
     ) -> (Verdict, Spread) {
         let (nr, ns) = (h.node(r), h.node(s));
         let mut range = [0.0; 2];
+        if spans_planes(nr) {
+            return (Verdict::Split, range);
+        }
         let power = if !nr.cluster && !ns.cluster {
             if spread.is_none() && coplanar(nr, ns) {
                 return (Verdict::Drop, range);
@@ -268,6 +274,15 @@ impl Refiner<'_> {
             n.area * b[0].max(b[1]).max_element() / std::f32::consts::PI
         }
     }
+}
+
+/// Whether `n` is a flat cluster over several parallel planes (a floor and
+/// the tops of the boxes on it). As a source it radiates like one surface,
+/// but as a receiver it would hand every surface the same irradiance:
+/// the floor's, partly hidden by the boxes, on the box tops too, which left
+/// them a sixth too dark. Such a receiver is opened up instead.
+fn spans_planes(n: &Node) -> bool {
+    n.cluster && n.flat && n.plane[1] - n.plane[0] > 1e-4 * n.radius
 }
 
 /// Whether the source lies in the receiver's plane (nothing passes).

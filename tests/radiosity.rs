@@ -45,13 +45,22 @@ fn run(scene: &Scene, q: f32) -> IndirectSolution {
 /// The unit cube of scenes/furnace with every face reflecting `rho` and
 /// emitting radiance `e` on both sides, written to a fresh folder.
 fn furnace(dir: &Path, rho: f32, e: f32) -> Scene {
+    furnace_of(
+        dir,
+        &format!("type = \"diffuse\"\nreflectance = [{rho}, {rho}, {rho}]"),
+        e,
+    )
+}
+
+/// The same furnace with the material fields (type and reflectances) given.
+fn furnace_of(dir: &Path, material: &str, e: f32) -> Scene {
     std::fs::copy(
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/furnace/cube.obj"),
         dir.join("cube.obj"),
     )
     .unwrap();
     let toml = format!(
-        "[[materials]]\nname = \"wall\"\ntype = \"diffuse\"\nreflectance = [{rho}, {rho}, {rho}]\n\
+        "[[materials]]\nname = \"wall\"\n{material}\n\
          emission = [{e}, {e}, {e}]\ntwo_sided_emission = true\n\n\
          [[objects]]\nname = \"cube\"\nmesh = \"cube.obj\"\nmaterial = \"wall\"\n"
     );
@@ -103,6 +112,77 @@ fn furnace_indirect_matches_the_closed_form() {
             }
         }
     }
+}
+
+/// Inside a closed furnace the radiance is the same everywhere and in
+/// every direction, so any surface reflects its white-sky albedo `a` of
+/// it, whichever way its lobes send the light: indirect irradiance is
+/// π E a / (1 − a) exactly. A transport that keeps only the diffuse part
+/// `d` of glossy surfaces gives π E d / (1 − d) instead: 8% of the exact
+/// value for the GGX walls below, 13% for the Ward ones.
+#[test]
+fn glossy_furnaces_keep_all_reflected_light() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "ggx",
+            "type = \"glossy\"\nmodel = \"ggx\"\ndiffuse = [0.3, 0.3, 0.3]\n\
+             specular = [0.6, 0.6, 0.6]\nroughness = 0.3",
+        ),
+        (
+            "ward",
+            "type = \"glossy\"\nmodel = \"ward\"\ndiffuse = [0.2, 0.2, 0.2]\n\
+             specular = [0.5, 0.5, 0.5]\nroughness = 0.2",
+        ),
+    ];
+    for (name, material) in cases {
+        let scene = furnace_of(dir.path(), material, 1.0);
+        let (a, sigma) = white_sky_albedo(&scene.materials[0].bsdf);
+        let sol = run(&scene, 0.5);
+        let want = PI * a / (1.0 - a);
+        // The albedo's Monte Carlo error (4σ), carried through a / (1 − a),
+        // plus the 1% the diffuse furnace is held to.
+        let tol = 0.01 + 4.0 * sigma / (a * (1.0 - a));
+        let d = diffuse_albedo(&scene.materials[0].bsdf).x;
+        println!(
+            "{name}: albedo {a} ± {sigma}, tolerance {tol}; diffuse only would give {}",
+            d / (1.0 - d) / (a / (1.0 - a))
+        );
+        let lit = facing_in(&scene);
+        for (i, ind) in sol.indirect.iter().enumerate().filter(|&(i, _)| lit[i]) {
+            assert!(
+                (ind.x / want - 1.0).abs() < tol,
+                "{name} furnace (albedo {a}), record {i}: indirect {} vs {want}",
+                ind.x
+            );
+        }
+    }
+}
+
+/// White-sky albedo of a material (red channel) and its standard error, by
+/// uniform sampling of both directions and the BSDF's evaluation alone
+/// (independent of the lobes' samplers).
+fn white_sky_albedo(bsdf: &rangewalk::scene::Bsdf) -> (f32, f32) {
+    use rangewalk::render::bsdf::Lobes;
+    let lobes = Lobes::at(bsdf, None);
+    let mut rng = Rng(11);
+    let mut uniform = || {
+        let (z, phi) = (rng.next(), 2.0 * PI * rng.next());
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    };
+    let n = 2_000_000;
+    let (mut sum, mut sq) = (0.0f64, 0.0f64);
+    for _ in 0..n {
+        let (wo, wi) = (uniform(), uniform());
+        // a = (1/π) ∫∫ f cos cos over two hemispheres of 2π each.
+        let v = (lobes.eval(wo, wi).x * wo.z * wi.z * 4.0 * PI) as f64;
+        sum += v;
+        sq += v * v;
+    }
+    let mean = sum / n as f64;
+    let var = (sq / n as f64 - mean * mean).max(0.0);
+    (mean as f32, (var / n as f64).sqrt() as f32)
 }
 
 #[test]
@@ -339,6 +419,17 @@ fn monte_carlo_indirect(
     n: Vec3,
     paths: usize,
 ) -> Vec3 {
+    monte_carlo_indirect_with_error(scene, engine, x, n, paths).0
+}
+
+/// [`monte_carlo_indirect`] with the standard error of its channel sum.
+fn monte_carlo_indirect_with_error(
+    scene: &Scene,
+    engine: &dyn RayEngine,
+    x: Vec3,
+    n: Vec3,
+    paths: usize,
+) -> (Vec3, f32) {
     let poses = scene.at(0.0);
     let mut emitters = Vec::new();
     for (o, xf) in scene.objects.iter().zip(&poses) {
@@ -381,7 +472,7 @@ fn monte_carlo_indirect(
         }
         e.radiance * (cy * cl / d2 * total)
     };
-    let sum: Vec3 = (0..paths)
+    let (sum, sq): (Vec3, f64) = (0..paths)
         .into_par_iter()
         .map(|i| {
             let mut rng = Rng((i as u64).wrapping_mul(0x9e3779b97f4a7c15) ^ 7);
@@ -411,10 +502,13 @@ fn monte_carlo_indirect(
                 }
                 (p, np) = (y, ny);
             }
-            est
+            (est, (est.element_sum() as f64).powi(2))
         })
-        .sum();
-    sum / paths as f32
+        .reduce(|| (Vec3::ZERO, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let mean = sum / paths as f32;
+    let m = mean.element_sum() as f64;
+    let var = (sq / paths as f64 - m * m).max(0.0);
+    (mean, (var / paths as f64).sqrt() as f32)
 }
 
 /// A closed room lit only through a skylight by a lamp above the roof: the
@@ -547,154 +641,139 @@ fn a_ceiling_lit_from_outside_keeps_its_inside_dark_only_where_it_is() {
     );
 }
 
-/// The whole object-space pipeline (simplification, then the solve on its
-/// tessellated patches) against the Monte Carlo gather at the records
-/// nearest to points inside walls, floor, ceiling and a box face. The
-/// patches of one wall meet only in clusters, so this is where a cluster's
-/// directional model shows: a first-order model that gives a flat wall
-/// three quarters of its intensity along its normal left these points 20%
-/// low on average and one 44% low. The tall box is taken out: points in
-/// its shadow come out up to a third low for a reason of their own (see
-/// [`MC_TOLERANCE`]).
+/// The whole object-space pipeline (simplification once, then a solve per
+/// time on its patches, with every occluder in place) against the Monte
+/// Carlo gather at the records nearest to points in the open, in the boxes'
+/// shadows, at their contact edges, behind them and on them, at three times
+/// of the animation. The goal is 10% at q = 0.6; the Monte Carlo estimate's
+/// own error (three standard errors) is added to it.
+///
+/// Points on the floor within a few centimetres of a box's base are
+/// printed but not held to the goal: there the records, a patch's corners,
+/// carry their leaf's average over an irradiance that falls to zero at the
+/// contact line, and they come out up to 17% low (47% where the short box
+/// reaches the open front); docs/radiosity.md tells why.
+///
+/// This check once had to leave the tall box out: the simplification left
+/// the ray engine posed at a random time of the animation, and the solve
+/// then saw the boxes where they were not (records beside them a third too
+/// dark). The short box's top came out a sixth too dark while it shared
+/// flat clusters with the floor (see `links::spans_planes`).
 #[test]
-fn simplified_cornell_indirect_is_unbiased() {
-    let mut scene = bundled("cornell-box");
-    scene.objects.retain(|o| o.name != "tall-box");
-    let centre = Vec3::new(278.0, 274.0, 280.0);
+fn cornell_records_agree_with_monte_carlo_with_every_occluder() {
+    let scene = bundled("cornell-box");
+    let id = |name: &str| scene.objects.iter().position(|o| o.name == name).unwrap();
+    let (floor, short, tall) = (id("floor"), id("short-box"), id("tall-box"));
+    // (object the record is on, object whose pose carries the point, point
+    // and the side's normal in that object's space at t = 0, whether it is
+    // at a contact edge)
+    let (up, down) = (Vec3::Y, -Vec3::Y);
     let points = [
-        (0usize, Vec3::new(450.0, 0.0, 120.0)),
-        (0, Vec3::new(100.0, 0.0, 400.0)),
-        (1, Vec3::new(400.0, 548.8, 450.0)),
-        (2, Vec3::new(150.0, 380.0, 559.2)),
-        (2, Vec3::new(400.0, 100.0, 559.2)),
-        (3, Vec3::new(0.0, 300.0, 150.0)),
-        (6, Vec3::new(185.0, 165.0, 169.0)),
+        (floor, floor, Vec3::new(450.0, 0.0, 120.0), up, false),
+        (floor, floor, Vec3::new(100.0, 0.0, 400.0), up, false),
+        // Between the tall box and the back wall, in its shadow.
+        (floor, tall, Vec3::new(420.0, 0.0, 480.0), up, false),
+        // Contact edges: just outside the boxes' front faces.
+        (floor, short, Vec3::new(205.0, 0.0, 60.0), up, true),
+        (floor, tall, Vec3::new(340.0, 0.0, 250.0), up, true),
+        (
+            id("ceiling"),
+            id("ceiling"),
+            Vec3::new(400.0, 548.8, 450.0),
+            down,
+            false,
+        ),
+        (
+            id("back"),
+            id("back"),
+            Vec3::new(150.0, 380.0, 559.2),
+            -Vec3::Z,
+            false,
+        ),
+        (
+            id("back"),
+            id("back"),
+            Vec3::new(412.0, 103.0, 559.2),
+            -Vec3::Z,
+            false,
+        ),
+        (
+            id("green-wall"),
+            id("green-wall"),
+            Vec3::new(0.0, 300.0, 150.0),
+            Vec3::X,
+            false,
+        ),
+        (short, short, Vec3::new(185.0, 165.0, 169.0), up, false),
+        (
+            short,
+            short,
+            Vec3::new(265.0, 82.0, 193.0),
+            Vec3::new(0.95, 0.0, 0.3),
+            false,
+        ),
+        (tall, tall, Vec3::new(368.0, 330.0, 351.0), up, false),
+        (
+            tall,
+            tall,
+            Vec3::new(393.0, 165.0, 431.0),
+            Vec3::new(0.3, 0.0, 0.95),
+            false,
+        ),
+        (
+            tall,
+            tall,
+            Vec3::new(344.0, 60.0, 272.0),
+            Vec3::new(-0.3, 0.0, -0.96),
+            false,
+        ),
     ];
     let quality = Quality::new(0.6).unwrap();
     let mut e = engine(&scene, 0.0);
     let s = rangewalk::radiosity::simplify(&scene, e.as_mut(), quality).unwrap();
-    let sol = solve(&scene, &s, e.as_ref(), 0.0, quality).unwrap();
-    println!("{} patches, {:?}", s.patches.len(), sol.stats);
-    let mut errors = Vec::new();
-    for (obj, p) in points {
-        // Of the two records at each corner, the one on the lit side: the
-        // short box's top faces up, everything else faces the centre.
-        let lit = |r: &RecordPoint| {
-            let towards = if obj == 6 {
-                Vec3::Y
-            } else {
-                centre - r.position
-            };
-            r.object == obj as u32 && r.normal.dot(towards) > 0.0
-        };
-        let r = (0..s.records.len())
-            .filter(|&r| lit(&s.records[r]))
-            .min_by(|&a, &b| {
-                let d = |r: usize| s.records[r].position.distance(p);
-                d(a).total_cmp(&d(b))
-            })
-            .unwrap();
-        let (x, n) = (s.records[r].position, s.records[r].normal);
-        let mc = monte_carlo_indirect(&scene, e.as_ref(), x, n, 40_000).element_sum();
-        let hr = sol.indirect[r].element_sum();
-        let err = hr / mc - 1.0;
-        println!(
-            "{} at {x}: radiosity {hr}, Monte Carlo {mc}, {err:+.3}",
-            scene.objects[obj].name
-        );
-        errors.push(err);
-    }
-    let mean = errors.iter().sum::<f32>() / errors.len() as f32;
-    println!("mean relative error {mean:+.3}");
-    assert!(mean.abs() < 0.05, "mean relative error {mean}");
-    for e in errors {
-        assert!(e.abs() < 0.2, "relative error {e} at one point");
-    }
-}
-
-/// Largest relative difference (per channel, against the brightest) between
-/// radiosity and the Monte Carlo gather: piecewise-constant elements count
-/// an element's shadowed part twice (darker on average and partly hidden),
-/// which leaves the solution 4–14% low at these points; the Monte Carlo
-/// noise is under 1%.
-const MC_TOLERANCE: f32 = 0.15;
-
-/// The Cornell box with walls, floor, ceiling and box faces split around
-/// interior points, so that records sit away from edges; radiosity's
-/// indirect irradiance there against the Monte Carlo gather.
-#[test]
-fn cornell_indirect_agrees_with_monte_carlo() {
-    let scene = bundled("cornell-box");
-    let centre = Vec3::new(278.0, 274.0, 280.0);
-    // (object, point, a point on the side that is lit)
-    let points = [
-        (0usize, Vec3::new(450.0, 0.0, 120.0), centre),
-        (2, Vec3::new(150.0, 380.0, 559.2), centre),
-        (3, Vec3::new(0.0, 300.0, 150.0), centre),
-        (1, Vec3::new(400.0, 548.8, 450.0), centre),
-        (
-            6,
-            Vec3::new(185.0, 165.0, 169.0),
-            Vec3::new(185.0, 400.0, 169.0),
-        ),
-        (
-            7,
-            Vec3::new(344.0, 165.0, 271.5),
-            Vec3::new(344.0, 165.0, 0.0),
-        ),
-    ];
-    let mut triangles = Vec::new();
-    for (i, o) in scene.objects.iter().enumerate() {
-        let split = points.iter().find(|(k, _, _)| *k == i).map(|p| p.1);
-        for t in &o.mesh.triangles {
-            let v = t.map(|k| o.mesh.positions[k as usize]);
-            match split.filter(|&c| inside(v, c)) {
-                Some(c) => {
-                    for e in 0..3 {
-                        triangles.push((i as u32, [c, v[e], v[(e + 1) % 3]]));
-                    }
-                }
-                None => triangles.push((i as u32, v)),
+    let mut failures = Vec::new();
+    for t in [0.0, 0.5, 1.0] {
+        e.set_transforms(&scene.at(t)).unwrap();
+        let sol = solve(&scene, &s, e.as_ref(), t, quality).unwrap();
+        let poses = scene.at(t);
+        println!("t = {t}: {} patches, {:?}", s.patches.len(), sol.stats);
+        for &(obj, carrier, local, normal, contact) in &points {
+            // The point in the record object's space at time t.
+            let world = poses[carrier].transform_point3(local);
+            let p = poses[obj].inverse().transform_point3(world);
+            let want = poses[carrier].transform_vector3(normal.normalize());
+            let want = poses[obj].inverse().transform_vector3(want);
+            let r = (0..s.records.len())
+                .filter(|&r| {
+                    let rec = &s.records[r];
+                    rec.object == obj as u32 && rec.normal.dot(want) > 0.9
+                })
+                .min_by(|&a, &b| {
+                    let d = |r: usize| s.records[r].position.distance(p);
+                    d(a).total_cmp(&d(b))
+                })
+                .unwrap();
+            let rec = s.records[r];
+            let x = poses[obj].transform_point3(rec.position);
+            let n = poses[obj].transform_vector3(rec.normal).normalize();
+            let (mc, sigma) = monte_carlo_indirect_with_error(&scene, e.as_ref(), x, n, 40_000);
+            let (mc, hr) = (mc.element_sum(), sol.indirect[r].element_sum());
+            let tol = 0.1 * mc + 3.0 * sigma;
+            println!(
+                "  {}{} at {x}: radiosity {hr:.4}, Monte Carlo {mc:.4} ± {sigma:.4}, {:+.3}",
+                scene.objects[obj].name,
+                if contact { " (contact edge)" } else { "" },
+                hr / mc - 1.0
+            );
+            if !contact && (hr - mc).abs() > tol {
+                failures.push(format!(
+                    "t = {t}, {} at {x}: radiosity {hr} vs Monte Carlo {mc} ± {sigma}",
+                    scene.objects[obj].name
+                ));
             }
         }
     }
-    let s = Simplified::from_triangles(&scene, triangles);
-    let e = engine(&scene, 0.0);
-    let sol = solve(&scene, &s, e.as_ref(), 0.0, Quality::new(0.9).unwrap()).unwrap();
-    println!("{:?}", sol.stats);
-    let mut worst = Vec::new();
-    for (obj, c, lit) in points {
-        let r = s
-            .records
-            .iter()
-            .position(|r| {
-                r.object == obj as u32
-                    && r.position.distance(c) < 1e-3
-                    && r.normal.dot(lit - c) > 0.0
-            })
-            .expect("a record at the split point, on its lit side");
-        let n = s.records[r].normal;
-        let mc = monte_carlo_indirect(&scene, e.as_ref(), c, n, 40_000);
-        let hr = sol.indirect[r];
-        let err = (hr - mc).abs().max_element() / mc.max_element();
-        println!(
-            "{}: radiosity {hr}, Monte Carlo {mc}, error {err:.3}",
-            scene.objects[obj].name
-        );
-        worst.push((err, obj, hr, mc));
-    }
-    for (err, obj, hr, mc) in worst {
-        assert!(
-            err < MC_TOLERANCE,
-            "{}: radiosity {hr} vs Monte Carlo {mc}",
-            scene.objects[obj].name
-        );
-    }
-}
-
-fn inside(t: [Vec3; 3], p: Vec3) -> bool {
-    let n = (t[1] - t[0]).cross(t[2] - t[0]);
-    (0..3).all(|e| (t[(e + 1) % 3] - t[e]).cross(p - t[e]).dot(n) > 0.0)
+    assert!(failures.is_empty(), "{failures:#?}");
 }
 
 #[test]

@@ -511,6 +511,37 @@ mod tests {
         }
     }
 
+    /// A diffuse lobe reflects its albedo, a mirror its reflectance, and a
+    /// glossy lobe its diffuse part plus a share of its specular one that
+    /// roughness lowers (light scattered below the horizon is lost).
+    #[test]
+    fn hemispherical_albedo_of_each_lobe() {
+        let c = Vec3::new(0.8, 0.5, 0.2);
+        assert_eq!(Lobes::Diffuse { albedo: c }.hemispherical_albedo(), c);
+        assert_eq!(Lobes::Mirror { reflectance: c }.hemispherical_albedo(), c);
+        for model in [GlossyModel::Ggx, GlossyModel::Ward] {
+            let at = |alpha| {
+                Lobes::Glossy {
+                    diffuse: Vec3::splat(0.1),
+                    specular: Vec3::splat(0.5),
+                    alpha,
+                    model,
+                }
+                .hemispherical_albedo()
+            };
+            let (smooth, rough) = (at(0.05), at(0.5));
+            assert!(
+                smooth.x > 0.1 + 0.5 * 0.95 && smooth.x <= 0.6 + 1e-3,
+                "{model:?}: {smooth}"
+            );
+            assert!(
+                rough.x < smooth.x && rough.x > 0.1,
+                "{model:?}: {rough} vs {smooth}"
+            );
+            assert_eq!(smooth.x, smooth.z, "{model:?}: grey in, grey out");
+        }
+    }
+
     #[test]
     fn mirror_reflects_exactly() {
         let l = Lobes::Mirror {

@@ -855,6 +855,90 @@ fn furnace_with_an_occluder_stays_uniform() {
     }
 }
 
+/// A finely tessellated ball in the Cornell box, coarsened by the
+/// simplification: its patches are chords inside the real ball, which the
+/// solver's shadow rays meet. Unless the patches are moved onto the true
+/// surface (`standin`), every ray from them is blocked and the ball's
+/// records come out black. Held to the same goal as the box's records.
+#[test]
+fn coarsened_ball_receives_its_light() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box");
+    let mut obj = std::fs::read_to_string(src.join("cornell-box.obj")).unwrap();
+    let base = obj.lines().filter(|l| l.starts_with("v ")).count();
+    let (centre, radius, rings, segments) = (Vec3::new(420.0, 70.0, 140.0), 70.0f32, 24, 48);
+    obj.push_str("\no ball\n");
+    for i in 0..=rings {
+        let theta = PI * i as f32 / rings as f32;
+        for j in 0..segments {
+            let phi = 2.0 * PI * j as f32 / segments as f32;
+            let v = centre
+                + radius
+                    * Vec3::new(
+                        theta.sin() * phi.cos(),
+                        theta.cos(),
+                        theta.sin() * phi.sin(),
+                    );
+            obj.push_str(&format!("v {} {} {}\n", v.x, v.y, v.z));
+        }
+    }
+    let at = |i: usize, j: usize| base + 1 + i * segments + j % segments;
+    for i in 0..rings {
+        for j in 0..segments {
+            // Outward winding.
+            obj.push_str(&format!(
+                "f {} {} {} {}\n",
+                at(i, j),
+                at(i, j + 1),
+                at(i + 1, j + 1),
+                at(i + 1, j)
+            ));
+        }
+    }
+    std::fs::write(dir.path().join("cornell-box.obj"), obj).unwrap();
+    let toml = std::fs::read_to_string(src.join("scene.toml")).unwrap()
+        + "\n[[objects]]\nname = \"ball\"\nmesh = \"cornell-box.obj\"\ngroup = \"ball\"\nmaterial = \"white\"\n";
+    std::fs::write(dir.path().join("scene.toml"), toml).unwrap();
+    let scene = load(&dir.path().join("scene.toml"));
+    let ball = scene.objects.iter().position(|o| o.name == "ball").unwrap();
+    let quality = Quality::new(0.6).unwrap();
+    let mut e = engine(&scene, 0.0);
+    let report =
+        rangewalk::radiosity::simplify::simplify_report(&scene, e.as_mut(), quality).unwrap();
+    assert_eq!(
+        report.objects[ball].fate,
+        rangewalk::radiosity::simplify::Fate::Coarsened
+    );
+    let s = report.simplified;
+    let sol = solve(&scene, &s, e.as_ref(), 0.0, quality).unwrap();
+    // Every record on the ball's outer side away from the pole (where all
+    // of a ring's triangles meet); each holds its patch's average, so the
+    // goal applies to their mean.
+    let (mut hr, mut mc, mut var, mut n) = (0.0, 0.0, 0.0, 0);
+    for (r, rec) in s.records.iter().enumerate() {
+        let outward = (rec.position - centre).normalize();
+        if rec.object != ball as u32
+            || rec.normal.dot(outward) < 0.8
+            || !(-0.9..0.9).contains(&outward.y)
+        {
+            continue;
+        }
+        let x = rec.position + outward * 0.05;
+        let (m, sigma) = monte_carlo_indirect_with_error(&scene, e.as_ref(), x, rec.normal, 10_000);
+        hr += sol.indirect[r].element_sum();
+        mc += m.element_sum();
+        var += sigma * sigma;
+        n += 1;
+    }
+    let (hr, mc, sigma) = (hr / n as f32, mc / n as f32, var.sqrt() / n as f32);
+    println!("{n} records on the ball: radiosity {hr:.4}, Monte Carlo {mc:.4} ± {sigma:.4}");
+    assert!(n >= 8, "{n} records on the ball");
+    assert!(
+        (hr - mc).abs() <= 0.1 * mc + 3.0 * sigma,
+        "ball: radiosity {hr} vs Monte Carlo {mc} ± {sigma}"
+    );
+}
+
 /// A stiff system without the furnace's symmetry: the Cornell box with its
 /// white surfaces at reflectance 0.99, where light bounces dozens of times
 /// before leaving through the open front. The linear solver must still

@@ -297,7 +297,7 @@ impl Simplified {
     }
 }
 
-fn object_extent(positions: &[Vec3]) -> f32 {
+pub(crate) fn object_extent(positions: &[Vec3]) -> f32 {
     let (lo, hi) = positions.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
         |(lo, hi), &p| (lo.min(p), hi.max(p)),

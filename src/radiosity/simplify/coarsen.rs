@@ -12,9 +12,10 @@ use crate::scene::Mesh;
 pub const AREA_TOLERANCE: f32 = 0.05;
 
 /// meshopt's bound on the geometric error of the collapses, relative to a
-/// mesh's extent. The same at every quality, so that one target always gives
-/// one result and a higher quality never keeps fewer triangles.
-const ERROR: f32 = 0.05;
+/// mesh's extent (its largest side). The same at every quality, so that one
+/// target always gives one result and a higher quality never keeps fewer
+/// triangles.
+pub const ERROR: f32 = 0.05;
 
 /// Targets grow by a quarter octave: fine enough not to keep much more than
 /// needed, on a fixed grid so that results are monotone in the target.

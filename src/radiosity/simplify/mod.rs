@@ -31,7 +31,7 @@ mod parts;
 mod tessellate;
 mod visibility;
 
-pub use coarsen::AREA_TOLERANCE;
+pub use coarsen::{AREA_TOLERANCE, ERROR as COARSEN_ERROR};
 pub use params::Params;
 
 /// How often the visibility rays hit an object.

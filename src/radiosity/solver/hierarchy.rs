@@ -72,8 +72,9 @@ const NORMAL_BINS: f32 = 4096.0;
 const CLUSTER_LEAF: usize = 4;
 
 impl Hierarchy {
-    /// The patches of `s` posed by `poses` (one per object), clustered.
-    pub fn build(s: &Simplified, poses: &[Affine3A], min_area: f32) -> Hierarchy {
+    /// The patches of `s` posed by `poses` (one per object) and moved by
+    /// `lifts` (one per patch, see `standin`), clustered.
+    pub fn build(s: &Simplified, poses: &[Affine3A], lifts: &[Vec3], min_area: f32) -> Hierarchy {
         let mut h = Hierarchy {
             nodes: Vec::with_capacity(2 * s.patches.len()),
             root: NONE,
@@ -92,7 +93,8 @@ impl Hierarchy {
         let mut roots = Vec::with_capacity(s.patches.len());
         for (i, p) in s.patches.iter().enumerate() {
             let xf = poses[p.object as usize];
-            let tri = p.vertices.map(|v| xf.transform_point3(v));
+            let lift = lifts.get(i).copied().unwrap_or(Vec3::ZERO);
+            let tri = p.vertices.map(|v| xf.transform_point3(v) + lift);
             let cross = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
             let area = 0.5 * cross.length();
             if !(area > 0.0 && area.is_finite()) {

@@ -157,14 +157,14 @@ impl<'a> Operator<'a> {
     pub fn apply(&self, x: &Field) -> Field {
         let rad = self.pull(x);
         let h = self.h;
-        let gathered: Vec<([Vec3; 2], [Vec3; 2], [Vec3; 3])> = self
+        let gathered: Vec<([Vec3; 2], [Vec3; 2], [Vec3; 4])> = self
             .groups
             .par_iter()
             .map(|&(r, a, b)| {
                 let nr = h.node(r);
                 let mut gs = [Vec3::ZERO; 2];
                 let mut gp = [Vec3::ZERO; 2];
-                let mut gv = [Vec3::ZERO; 3];
+                let mut gv = [Vec3::ZERO; 4];
                 for l in &self.links[a..b] {
                     match l.t {
                         Transfer::Surfaces { f, vis, .. } => {
@@ -180,6 +180,7 @@ impl<'a> Operator<'a> {
                                 gv[0] += e * dir.x;
                                 gv[1] += e * dir.y;
                                 gv[2] += e * dir.z;
+                                gv[3] += e;
                             } else {
                                 let c = nr.normal.dot(dir);
                                 gp[0] += e * c.max(0.0);
@@ -192,18 +193,24 @@ impl<'a> Operator<'a> {
             })
             .collect();
         // Irradiance through surface links (`gs`), through cluster links
-        // (`gp`), and a cluster's vector irradiance (`gv`).
+        // (`gp`), and a cluster's incident light to first order (`gv`: the
+        // vector irradiance, then the sum of the links' irradiances).
         let n = h.nodes.len();
         let mut gs = vec![[Vec3::ZERO; 2]; n];
         let mut gp = vec![[Vec3::ZERO; 2]; n];
-        let mut gv = vec![[Vec3::ZERO; 3]; n];
+        let mut gv = vec![[Vec3::ZERO; 4]; n];
         for (&(r, _, _), (s, p, v)) in self.groups.iter().zip(gathered) {
             gs[r as usize] = s;
             gp[r as usize] = p;
             gv[r as usize] = v;
         }
-        // Push: irradiance is per unit area, so children inherit it as is;
-        // a cluster's vector irradiance becomes each surface's cosine share.
+        // Push: irradiance is per unit area, so children inherit it as is.
+        // A cluster's incident light reaches each surface of orientation `m`
+        // as `E(m) = Σe/4 + (Σe ω)·m/2`, the irradiance of the light's
+        // first-order (constant plus linear) expansion: exact for light from
+        // all around, and right on average over orientations for any light.
+        // The vector alone (`max(0, (Σe ω)·m)`) cancels where light comes
+        // from several sides: a ball in a room received a third too little.
         for &i in &self.order {
             let node = h.node(i);
             let k = i as usize;
@@ -213,14 +220,15 @@ impl<'a> Operator<'a> {
                 if !node.flat {
                     let child = &h.nodes[c];
                     if !child.flat {
-                        for a in 0..3 {
+                        for a in 0..4 {
                             gv[c][a] += pgv[a];
                         }
                     } else {
                         let m = child.normal;
-                        let e = pgv[0] * m.x + pgv[1] * m.y + pgv[2] * m.z;
-                        gp[c][0] += e.max(Vec3::ZERO);
-                        gp[c][1] += (-e).max(Vec3::ZERO);
+                        let e = (pgv[0] * m.x + pgv[1] * m.y + pgv[2] * m.z) * 0.5;
+                        let iso = pgv[3] * 0.25;
+                        gp[c][0] += (iso + e).max(Vec3::ZERO);
+                        gp[c][1] += (iso - e).max(Vec3::ZERO);
                     }
                 } else {
                     for side in 0..2 {

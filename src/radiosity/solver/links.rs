@@ -490,8 +490,24 @@ fn transfer(h: &Hierarchy, r: u32, s: u32, vis: &Visibility, spread: Spread) -> 
 fn shadow_ray(h: &Hierarchy, r: u32, s: u32, seed: u32, j: usize, n: usize) -> (Ray, Sample) {
     let (pr, nr, _) = sample_point(h, r, seed, j, n);
     let (ps, ns, leaf) = sample_point(h, s, seed ^ 0x9e37_79b9, j, n);
-    let a = offset_origin(pr, nr, ps - pr);
-    let b = offset_origin(ps, ns, pr - ps);
+    let mut a = offset_origin(pr, nr, ps - pr);
+    let mut b = offset_origin(ps, ns, pr - ps);
+    // A cluster's directional model already keeps light from the surfaces
+    // that face away (its cosines), so a ray counts only what lies between
+    // the two clusters: from a far point of a ball, a ray through the ball
+    // itself would darken the side that faces the light a second time.
+    let (rn, sn) = (h.node(r), h.node(s));
+    let d = b - a;
+    if rn.cluster && !rn.flat {
+        if let Some([_, out]) = sphere_span(a, d, rn.center, rn.radius) {
+            a += d * out.clamp(0.0, 1.0);
+        }
+    }
+    if sn.cluster && !sn.flat {
+        if let Some([into, _]) = sphere_span(a, b - a, sn.center, sn.radius) {
+            b = a + (b - a) * into.clamp(0.0, 1.0);
+        }
+    }
     let sample = Sample {
         leaf,
         sides: (
@@ -501,6 +517,17 @@ fn shadow_ray(h: &Hierarchy, r: u32, s: u32, seed: u32, j: usize, n: usize) -> (
         open: false,
     };
     (Ray::segment(a, b - a, 1.0), sample)
+}
+
+/// Where the line `o + t d` is inside the sphere, as `[t_in, t_out]`.
+fn sphere_span(o: Vec3, d: Vec3, center: Vec3, radius: f32) -> Option<[f32; 2]> {
+    let (a, oc) = (d.length_squared(), o - center);
+    let b = oc.dot(d);
+    let disc = b * b - a * (oc.length_squared() - radius * radius);
+    (a > 0.0 && disc >= 0.0).then(|| {
+        let r = disc.sqrt();
+        [(-b - r) / a, (-b + r) / a]
+    })
 }
 
 /// A point on the surface of node `i`, the normal there and the leaf that

@@ -25,6 +25,7 @@ mod linear;
 mod links;
 mod output;
 mod sources;
+mod standin;
 
 use hierarchy::{Hierarchy, NONE};
 use linear::{Field, Operator};
@@ -84,7 +85,13 @@ pub fn solve(
     let params = Params::new(quality);
     let total_area: f32 = simplified.patches.iter().map(|p| p.area()).sum();
     let poses = scene.at(time);
-    let mut h = Hierarchy::build(simplified, &poses, total_area * params.min_area_fraction);
+    let lifts = standin::lifts(scene, simplified, &poses, engine);
+    let mut h = Hierarchy::build(
+        simplified,
+        &poses,
+        &lifts,
+        total_area * params.min_area_fraction,
+    );
     let zero = vec![Vec3::ZERO; simplified.records.len()];
     let mut stats = SolveStats::default();
     let empty = |stats: SolveStats| IndirectSolution {

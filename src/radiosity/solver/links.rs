@@ -491,21 +491,20 @@ fn shadow_ray(h: &Hierarchy, r: u32, s: u32, seed: u32, j: usize, n: usize) -> (
     let (pr, nr, _) = sample_point(h, r, seed, j, n);
     let (ps, ns, leaf) = sample_point(h, s, seed ^ 0x9e37_79b9, j, n);
     let mut a = offset_origin(pr, nr, ps - pr);
-    let mut b = offset_origin(ps, ns, pr - ps);
-    // A cluster's directional model already keeps light from the surfaces
-    // that face away (its cosines), so a ray counts only what lies between
-    // the two clusters: from a far point of a ball, a ray through the ball
-    // itself would darken the side that faces the light a second time.
-    let (rn, sn) = (h.node(r), h.node(s));
-    let d = b - a;
+    let b = offset_origin(ps, ns, pr - ps);
+    // A receiving cluster's directional model already keeps light from the
+    // surfaces that face away (its cosines), so a ray to it counts only
+    // what lies outside it: from a far point of a ball, a ray through the
+    // ball itself would darken the side that faces the light a second time.
+    // (The source end keeps its rays whole: a cluster's intensity counts the
+    // inner sides of closed objects too, and only their blocked rays keep
+    // that light in; clipped there, the transport gained energy and failed
+    // to converge.)
+    let rn = h.node(r);
     if rn.cluster && !rn.flat {
+        let d = b - a;
         if let Some([_, out]) = sphere_span(a, d, rn.center, rn.radius) {
             a += d * out.clamp(0.0, 1.0);
-        }
-    }
-    if sn.cluster && !sn.flat {
-        if let Some([into, _]) = sphere_span(a, b - a, sn.center, sn.radius) {
-            b = a + (b - a) * into.clamp(0.0, 1.0);
         }
     }
     let sample = Sample {

@@ -411,18 +411,8 @@ fn cosine_direction(n: Vec3, rng: &mut Rng) -> Vec3 {
 
 /// Indirect irradiance at `x` (unit normal `n`) by path tracing with next
 /// event estimation on the emitting triangles: Σ_k ρ_1⋯ρ_k E_direct(y_k)
-/// along cosine-sampled paths. Uses the ray engine and the scene only.
-fn monte_carlo_indirect(
-    scene: &Scene,
-    engine: &dyn RayEngine,
-    x: Vec3,
-    n: Vec3,
-    paths: usize,
-) -> Vec3 {
-    monte_carlo_indirect_with_error(scene, engine, x, n, paths).0
-}
-
-/// [`monte_carlo_indirect`] with the standard error of its channel sum.
+/// along cosine-sampled paths, with the standard error of its channel sum.
+/// Uses the ray engine and the scene only.
 fn monte_carlo_indirect_with_error(
     scene: &Scene,
     engine: &dyn RayEngine,

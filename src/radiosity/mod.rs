@@ -189,7 +189,7 @@ pub fn record_sides(s: &Simplified) -> Vec<u8> {
 /// The glossy lobe and the mirror send their share in other directions,
 /// which a diffuse solver cannot follow; but leaving it out makes such a
 /// surface a sink, and a room lit mainly off a glossy floor renders too
-/// dark everywhere (docs/radiosity.md, "Energy the transport dropped").
+/// dark everywhere (docs/radiosity.md, "The dark bias").
 /// Only the transport uses this; shading at a rendered pixel applies
 /// [`diffuse_albedo`] to the records' irradiance and traces the rest.
 pub fn transport_albedo(bsdf: &Bsdf) -> Vec3 {

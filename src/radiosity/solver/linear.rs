@@ -8,6 +8,7 @@
 
 use std::f32::consts::PI;
 
+use anyhow::{bail, Result};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -308,6 +309,24 @@ pub struct Solved {
     pub residual: f64,
 }
 
+impl Solved {
+    /// An error unless the residual is at most `bound`: [`solve`] stops on
+    /// breakdown or stagnation as well as on convergence, and a stalled
+    /// iterate (at worst the zero guess, residual 1) must not pass for a
+    /// solution.
+    pub fn check(&self, bound: f64) -> Result<()> {
+        if self.residual <= bound {
+            return Ok(());
+        }
+        bail!(
+            "the radiosity solve did not converge: relative residual {:.3e} after {} \
+             BiCGSTAB iterations, above the {bound:.0e} a solution must reach",
+            self.residual,
+            self.iterations
+        )
+    }
+}
+
 /// Solves `x − ρ ⊙ K x = b` by BiCGSTAB from the guess `x`, to relative
 /// residual `tol` per channel or `max_iter` iterations in all.
 ///
@@ -443,4 +462,31 @@ fn div(a: DVec3, b: DVec3) -> DVec3 {
         }
     };
     DVec3::new(f(a.x, b.x), f(a.y, b.y), f(a.z, b.z))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn solved(residual: f64) -> Solved {
+        Solved {
+            x: Vec::new(),
+            iterations: 7,
+            residual,
+        }
+    }
+
+    #[test]
+    fn a_stalled_solve_is_an_error() {
+        let err = solved(1.0).check(1e-3).unwrap_err().to_string();
+        assert!(err.contains("did not converge"), "{err}");
+        assert!(
+            err.contains("1.000e0") && err.contains("7 BiCGSTAB"),
+            "{err}"
+        );
+        assert!(solved(f64::NAN).check(1e-3).is_err());
+        assert!(solved(2e-3).check(1e-3).is_err());
+        solved(1e-3).check(1e-3).unwrap();
+        solved(0.0).check(1e-3).unwrap();
+    }
 }

@@ -13,7 +13,7 @@
 
 use std::time::Instant;
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use glam::Vec3;
 
 use super::{IndirectSolution, Quality, Simplified, SolveStats};
@@ -201,6 +201,11 @@ pub fn solve(
         stats.iterations += solved.iterations;
         stats.residual = solved.residual;
         if last {
+            // The rounds before the last stop at `oracle_tolerance`: a final
+            // solution worse than theirs has not converged.
+            solved
+                .check(params.oracle_tolerance)
+                .with_context(|| format!("at t = {time}"))?;
             let indirect = op.apply(&solved.x);
             let index = leaf_index(&h, &op.leaves);
             let (ind, dir) =

@@ -748,7 +748,7 @@ fn cornell_records_agree_with_monte_carlo_with_every_occluder() {
         .flat_map(|(q, quality, s)| [0.0, 0.5, 1.0].map(|t| (*q, *quality, s, t)));
     for (q, quality, s, t) in runs {
         e.set_transforms(&scene.at(t)).unwrap();
-        let sol = solve(&scene, &s, e.as_ref(), t, quality).unwrap();
+        let sol = solve(&scene, s, e.as_ref(), t, quality).unwrap();
         let poses = scene.at(t);
         println!(
             "q = {q}, t = {t}: {} patches, {:?}",

@@ -51,8 +51,8 @@ pub fn shard_from(var: impl Fn(&str) -> Option<String>) -> Result<Shard> {
     ensure!(
         count > 0 && index < count,
         "--shard-from-env: SLURM_ARRAY_TASK_ID {index} is not below SLURM_ARRAY_TASK_COUNT {count}: \
-         the array must run indices 0 to n-1; to run one task again, requeue it \
-         (`scontrol requeue <job>_<index>`) or submit the whole array again (finished images are kept)"
+         the array must run indices 0 to n-1; to run a task again, submit the job scripts again \
+         (`rangewalk slurm ... --submit`: every task keeps its finished images and renders the rest)"
     );
     Ok(Shard { index, count })
 }
@@ -348,7 +348,7 @@ mod tests {
         ]))
         .unwrap_err();
         assert!(
-            format!("{alone:#}").contains("scontrol requeue"),
+            format!("{alone:#}").contains("submit the job scripts again"),
             "{alone:#}"
         );
     }

@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use anyhow::{bail, Result};
+use rayon::prelude::*;
 
 use super::manifest::{self, Manifest, RADIOSITY};
 use super::IndirectSource;
@@ -93,9 +94,11 @@ pub(super) fn seal(dir: &Path, m: &mut Manifest, checked: &[bool]) -> Result<Vec
         .iter()
         .map(|e| manifest::recorded(&dir.join(&e.file), e.fnv1a64.as_deref()))
         .collect();
+    // Reading images back is the finishing job's whole work: on all its
+    // cores.
     let bad: Vec<String> = m
         .images
-        .iter()
+        .par_iter()
         .zip(&recorded)
         .zip(checked)
         .filter(|((e, sum), &ok)| {

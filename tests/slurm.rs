@@ -52,14 +52,14 @@ fn fails(cmd: &mut Command, expected: &str) {
 }
 
 /// The settings of every bake here: small, yet each image takes long
-/// enough (about two seconds) that a task can be cancelled while rendering.
+/// enough (seconds) that a task can be cancelled while rendering.
 const SETTINGS: [&str; 8] = [
     "--quality",
     "0.3",
     "--size",
     "64",
     "--spp",
-    "400",
+    "800",
     "--backend",
     "bvh",
 ];
@@ -476,6 +476,24 @@ impl Cluster {
             .is_empty()
     }
 
+    /// Submits a four-task bake into `dir`, waits for its jobs to end and
+    /// requires every job and task to have completed; returns the jobs and
+    /// the seconds from submission to the end.
+    fn bake_to_the_end(&mut self, dir: &Path) -> (Jobs, f64) {
+        let start = Instant::now();
+        let jobs = self.submit(dir);
+        self.wait_for("the jobs to end", |c| !c.queued(&jobs));
+        let seconds = start.elapsed().as_secs_f64();
+        let tasks = (0..4).map(|t| format!("{}_{t}", jobs.bake));
+        for id in [jobs.prepare.clone(), jobs.finish.clone()]
+            .into_iter()
+            .chain(tasks)
+        {
+            assert_eq!(self.state_of(&id), "COMPLETED", "job {id}\n{}", self.logs());
+        }
+        (jobs, seconds)
+    }
+
     /// `rangewalk slurm ... --submit` for a four-task bake into `dir`.
     fn submit(&self, dir: &Path) -> Jobs {
         let mut c = rangewalk();
@@ -580,30 +598,11 @@ fn a_slurm_array_bake_equals_the_single_machine_bake_even_with_a_task_cancelled(
 
     // The whole bake as four array tasks between its two single jobs.
     let whole = tmp.path().join("whole");
-    let start = Instant::now();
-    let jobs = cluster.submit(&whole);
-    cluster.wait_for("the jobs to end", |c| !c.queued(&jobs));
+    let (jobs, seconds) = cluster.bake_to_the_end(&whole);
     println!(
-        "jobs {} (prepare), {} (array of 4), {} (finish): {:.1} s from submission to complete",
-        jobs.prepare,
-        jobs.bake,
-        jobs.finish,
-        start.elapsed().as_secs_f64()
+        "jobs {} (prepare), {} (array of 4), {} (finish): {seconds:.1} s from submission to complete",
+        jobs.prepare, jobs.bake, jobs.finish
     );
-    for id in [&jobs.prepare, &jobs.finish] {
-        assert_eq!(
-            cluster.state_of(id),
-            "COMPLETED",
-            "job {id}\n{}",
-            cluster.logs()
-        );
-    }
-    for task in 0..4 {
-        assert_eq!(
-            cluster.state_of(&format!("{}_{task}", jobs.bake)),
-            "COMPLETED"
-        );
-    }
     assert_same_bake(&single, &whole);
     assert_eq!(rendered_and_reused(&whole, &jobs.bake), (4, 0));
     let s = ok(rangewalk().arg("bake").arg("--status").arg(&whole));
@@ -636,21 +635,10 @@ fn a_slurm_array_bake_equals_the_single_machine_bake_even_with_a_task_cancelled(
     assert!(s.contains("3 of 4 images done (75%)"), "{s}");
 
     // Submitted again, the tasks render only the missing image.
-    let start = Instant::now();
-    let again = cluster.submit(&cut);
-    cluster.wait_for("the jobs to end", |c| !c.queued(&again));
+    let (again, seconds) = cluster.bake_to_the_end(&cut);
     println!(
-        "resubmitted as jobs {}, {}, {}: {:.1} s to complete",
-        again.prepare,
-        again.bake,
-        again.finish,
-        start.elapsed().as_secs_f64()
-    );
-    assert_eq!(
-        cluster.state_of(&again.finish),
-        "COMPLETED",
-        "{}",
-        cluster.logs()
+        "resubmitted as jobs {}, {}, {}: {seconds:.1} s to complete",
+        again.prepare, again.bake, again.finish
     );
     assert_eq!(rendered_and_reused(&cut, &again.bake), (1, 3));
     assert_same_bake(&single, &cut);

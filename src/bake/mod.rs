@@ -12,6 +12,8 @@
 //! shard or thread count renders it: a killed bake started again renders
 //! only what is missing or damaged and ends identical to an uninterrupted
 //! one, and shards `i/n` together make exactly the single-machine bake.
+//! That is what lets a bake run as a Slurm job array (`slurm`), watched
+//! and finished from the directory alone (`status`).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -316,7 +318,8 @@ pub fn prepare(
 }
 
 /// Refuses to go on with the bake in `dir` when it was made from another
-/// scene or with other settings; a directory without a bake passes.
+/// scene or with other settings, or when `dir` holds something that is no
+/// bake; a missing or empty directory passes.
 pub fn check_resumable(scene: &Scene, dir: &Path, settings: &Settings) -> Result<()> {
     if !dir.join(manifest::MANIFEST).exists() {
         return check_fresh(dir);

@@ -8,7 +8,7 @@ CARGO ?= cargo
 VENV := .venv
 PYTHON := $(VENV)/bin/python
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-DEB_PACKAGES := libembree-dev libopenimageio-dev libclang-dev pkg-config g++ python3 python3-venv fonts-dejavu-core
+DEB_PACKAGES := libembree-dev libopenimageio-dev libclang-dev pkg-config g++ python3 python3-venv fonts-dejavu-core slurm-wlm munge
 PY_PACKAGES := mitsuba==3.9.1 flip-evaluator==1.7 numpy
 DEMO_SCENE := scenes/cornell-box/scene.toml
 DEMO_SIZE := 256x256

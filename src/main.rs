@@ -98,6 +98,10 @@ enum Command {
     /// Render the base range images of every (view, time) of the plan
     /// (paper §4.4) into a bake directory; resumes an unfinished bake.
     Bake(BakeArgs),
+    /// Write (and with --submit, submit) Slurm job scripts that bake on a
+    /// cluster: one job for the plan and radiosity, an array of bake tasks,
+    /// one job that checks every image and marks the bake complete.
+    Slurm(SlurmArgs),
     /// Synthesize one frame of a named camera at a time from a bake's base
     /// images (view reprojection and time interpolation).
     Synth(rangewalk::synth::command::SynthArgs),
@@ -340,6 +344,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Experiment { experiment } => rangewalk::eval::run(experiment)?,
         Command::Plan(args) => plan(args)?,
         Command::Bake(args) => bake_command(args)?,
+        Command::Slurm(args) => slurm_command(args)?,
         Command::Compare { reference, images } => {
             let r = image::read_exr(&reference)?;
             for p in images {
@@ -707,14 +712,44 @@ fn plan(args: PlanArgs) -> Result<()> {
 
 #[derive(clap::Args)]
 struct BakeArgs {
-    scene: PathBuf,
+    #[arg(required_unless_present_any = ["status", "finish"])]
+    scene: Option<PathBuf>,
     /// Quality in [0, 1] of every stage: views, times, radiosity.
-    #[arg(long)]
-    quality: f32,
+    #[arg(long, required_unless_present_any = ["status", "finish"])]
+    quality: Option<f32>,
     /// Bake directory: created, or resumed if it holds an unfinished bake of
     /// the same scene and settings.
-    #[arg(long)]
-    out: PathBuf,
+    #[arg(long, required_unless_present_any = ["status", "finish"])]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    options: BakeOptions,
+    /// Bake only every n-th image from the i-th (`i/n`, i from 0), so that
+    /// n machines can share one bake directory.
+    #[arg(long, default_value = "0/1")]
+    shard: Shard,
+    /// Take the shard from the Slurm array task this runs in
+    /// (SLURM_ARRAY_TASK_ID of SLURM_ARRAY_TASK_COUNT).
+    #[arg(long, conflicts_with = "shard")]
+    shard_from_env: bool,
+    /// Only plan and solve radiosity, rendering no image: the first job of a
+    /// distributed bake, before the shards.
+    #[arg(long, conflicts_with_all = ["shard", "shard_from_env"])]
+    prepare: bool,
+    /// Count the done images of the bake in DIR (it may be running
+    /// elsewhere) and exit.
+    #[arg(long, value_name = "DIR", exclusive = true)]
+    status: Option<PathBuf>,
+    /// Read every image of the bake in DIR back against its checksum and
+    /// mark the bake complete; fails, naming them, if any is missing or
+    /// damaged. The last job of a distributed bake.
+    #[arg(long, value_name = "DIR", exclusive = true)]
+    finish: Option<PathBuf>,
+}
+
+/// The settings of a bake besides its scene, quality and directory, shared
+/// by `bake` and `slurm` (which passes them on to the jobs).
+#[derive(clap::Args)]
+struct BakeOptions {
     /// Side of the square base images (default: from --frame-size and the
     /// scene's narrowest field of view).
     #[arg(long)]
@@ -734,10 +769,6 @@ struct BakeArgs {
     indirect: IndirectSource,
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Bake only every n-th image from the i-th (`i/n`, i from 0), so that
-    /// n machines can share one bake directory.
-    #[arg(long, default_value = "0/1")]
-    shard: Shard,
     #[arg(long, value_enum, default_value_t = Backend::default_available())]
     backend: Backend,
     /// Longest path, counted as Mitsuba's `max_depth`; unlimited by default.
@@ -751,57 +782,115 @@ struct BakeArgs {
     master_list: bool,
 }
 
+impl BakeOptions {
+    /// The settings these options give for `s`, and a line saying how the
+    /// image size was chosen.
+    fn settings(&self, s: &Scene, quality: Quality) -> Result<(bake::Settings, String)> {
+        let projection = format!("{:?}", self.projection).to_lowercase();
+        let (size, why) = match self.size {
+            Some(0) => bail!("--size must be at least 1"),
+            Some(n) => (n, format!("base images: {n}x{n} {projection} (--size)")),
+            None => {
+                let (w, h) = self.frame_size;
+                let Some(fov) = bake::size::narrowest_fov(s) else {
+                    bail!(
+                        "{} has no camera or walk path to size base images from: pass --size",
+                        s.source.display()
+                    );
+                };
+                let n = bake::size::base_size(self.projection, self.frame_size, fov);
+                (n, format!(
+                    "base images: {n}x{n} {projection}, so that no base pixel is coarser than a pixel of a {w}x{h} frame at the scene's narrowest field of view, {fov}°"
+                ))
+            }
+        };
+        let settings = bake::Settings {
+            quality: quality.get(),
+            size,
+            spp: self.spp,
+            projection: self.projection,
+            indirect: self.indirect,
+            seed: self.seed,
+            backend: self.backend,
+            max_depth: self.max_depth,
+        };
+        Ok((settings, why))
+    }
+
+    /// The same options as `rangewalk bake` arguments, every one spelled
+    /// out so that the jobs do not depend on defaults.
+    fn words(&self) -> Vec<String> {
+        let name = |v: &dyn Fn() -> Option<clap::builder::PossibleValue>| {
+            v().expect("every value has a name").get_name().to_string()
+        };
+        let mut w: Vec<String> = Vec::new();
+        let mut push = |k: &str, v: String| {
+            w.push(k.into());
+            w.push(v);
+        };
+        if let Some(n) = self.size {
+            push("--size", n.to_string());
+        }
+        push(
+            "--frame-size",
+            format!("{}x{}", self.frame_size.0, self.frame_size.1),
+        );
+        push("--spp", self.spp.to_string());
+        push(
+            "--projection",
+            name(&|| self.projection.to_possible_value()),
+        );
+        push("--indirect", name(&|| self.indirect.to_possible_value()));
+        push("--seed", self.seed.to_string());
+        push("--backend", name(&|| self.backend.to_possible_value()));
+        if let Some(d) = self.max_depth {
+            push("--max-depth", d.to_string());
+        }
+        if let Some(r) = self.resolution {
+            push("--resolution", r.to_string());
+        }
+        if self.master_list {
+            w.push("--master-list".into());
+        }
+        w
+    }
+}
+
 /// `rangewalk bake`: plan (when starting), radiosity (once), then this
 /// shard's missing base images, with progress and a summary.
 fn bake_command(args: BakeArgs) -> Result<()> {
     use rangewalk::plan::{self, PlanOptions};
-    let quality = Quality::new(args.quality).context("--quality")?;
-    let s = load(&args.scene)?;
-    let size = match args.size {
-        Some(0) => bail!("--size must be at least 1"),
-        Some(n) => {
-            println!(
-                "base images: {n}x{n} {} (--size)",
-                format!("{:?}", args.projection).to_lowercase()
-            );
-            n
-        }
-        None => {
-            let (w, h) = args.frame_size;
-            let Some(fov) = bake::size::narrowest_fov(&s) else {
-                bail!(
-                    "{} has no camera or walk path to size base images from: pass --size",
-                    s.source.display()
-                );
-            };
-            let n = bake::size::base_size(args.projection, args.frame_size, fov);
-            println!(
-                "base images: {n}x{n} {}, so that no base pixel is coarser than a pixel of a {w}x{h} frame at the scene's narrowest field of view, {fov}°",
-                format!("{:?}", args.projection).to_lowercase()
-            );
-            n
-        }
+    if let Some(dir) = &args.status {
+        return bake_status(dir);
+    }
+    if let Some(dir) = &args.finish {
+        return bake_finish(dir);
+    }
+    let (Some(scene), Some(quality), Some(out)) = (&args.scene, args.quality, &args.out) else {
+        bail!("bake needs a scene, --quality and --out");
     };
-    let settings = bake::Settings {
-        quality: quality.get(),
-        size,
-        spp: args.spp,
-        projection: args.projection,
-        indirect: args.indirect,
-        seed: args.seed,
-        backend: args.backend,
-        max_depth: args.max_depth,
+    let quality = Quality::new(quality).context("--quality")?;
+    let shard = if args.shard_from_env {
+        bake::slurm::shard_from_env()?
+    } else {
+        args.shard
     };
-    let mut engine = engine_at_start(&s, args.backend)?;
+    let s = load(scene)?;
+    let (settings, why) = args.options.settings(&s, quality)?;
+    println!("{why}");
+    let mut engine = engine_at_start(&s, settings.backend)?;
     let options = PlanOptions {
         quality,
-        resolution: args.resolution,
-        master_list: args.master_list,
+        resolution: args.options.resolution,
+        master_list: args.options.master_list,
     };
-    let summary = bake::run(&s, &args.out, &settings, args.shard, engine.as_mut(), |e| {
-        plan::make(&s, e, &options)
-    })?;
-    let manifest = bake::Manifest::read(&args.out)?;
+    let plan = |e: &mut dyn InstancedEngine| plan::make(&s, e, &options);
+    let summary = if args.prepare {
+        bake::prepare(&s, out, &settings, engine.as_mut(), plan)?
+    } else {
+        bake::run(&s, out, &settings, shard, engine.as_mut(), plan)?
+    };
+    let manifest = bake::Manifest::read(out)?;
     let p = &manifest.plan;
     match summary.plan_seconds {
         Some(t) => println!(
@@ -822,20 +911,29 @@ fn bake_command(args: BakeArgs) -> Result<()> {
     for why in &p.skipped {
         println!("  skipped: {why}");
     }
-    match (args.indirect, summary.radiosity_seconds) {
+    match (settings.indirect, summary.radiosity_seconds) {
         (IndirectSource::Path, _) => println!("radiosity skipped: indirect light is traced"),
         (IndirectSource::Radiosity, Some(t)) => println!("radiosity: solved in {t:.3} s"),
-        (IndirectSource::Radiosity, None) if summary.rendered > 0 => println!(
+        (IndirectSource::Radiosity, None) if summary.rendered > 0 || args.prepare => println!(
             "radiosity: reused from {}",
-            args.out.join(bake::manifest::RADIOSITY).display()
+            out.join(bake::manifest::RADIOSITY).display()
         ),
         (IndirectSource::Radiosity, None) => {}
     }
     if !s.has_specular() {
         println!("specular rays skipped: no glossy or mirror surfaces");
     }
-    let shard = if args.shard.count > 1 {
-        format!(" (shard {}/{})", args.shard.index, args.shard.count)
+    if args.prepare {
+        println!(
+            "prepared {}: {} of {} images finished; bake the rest with --shard i/n or --shard-from-env",
+            out.display(),
+            summary.finished,
+            summary.total
+        );
+        return Ok(());
+    }
+    let shard = if shard.count > 1 {
+        format!(" (shard {}/{})", shard.index, shard.count)
     } else {
         String::new()
     };
@@ -849,16 +947,174 @@ fn bake_command(args: BakeArgs) -> Result<()> {
             "  {t:.3} s, {:.3} M samples/s, {:.2} M shaded rays/s, backend {}",
             summary.samples as f64 / t / 1e6,
             summary.rays as f64 / t / 1e6,
-            args.backend
+            settings.backend
         );
     }
     if summary.complete {
-        println!("bake complete: {}", args.out.display());
+        println!("bake complete: {}", out.display());
     } else {
         println!(
             "bake not complete: {} images missing; run the other shards (or this command again)",
             summary.total - summary.finished
         );
+    }
+    Ok(())
+}
+
+/// The first few of `files`, for a message.
+fn some_of(files: &[String]) -> String {
+    const SHOWN: usize = 8;
+    let mut s = files
+        .iter()
+        .take(SHOWN)
+        .cloned()
+        .collect::<Vec<_>>()
+        .join(", ");
+    if files.len() > SHOWN {
+        s += &format!(" and {} more", files.len() - SHOWN);
+    }
+    s
+}
+
+/// `rangewalk bake --status`: how many images are done.
+fn bake_status(dir: &Path) -> Result<()> {
+    let st = bake::status::status(dir)?;
+    let radiosity = match st.radiosity {
+        None => "",
+        Some(true) => "; radiosity solved",
+        Some(false) => "; radiosity not solved yet",
+    };
+    println!(
+        "{}: {} of {} images done ({:.0}%){radiosity}; {}",
+        dir.display(),
+        st.done,
+        st.total,
+        100.0 * st.done as f64 / st.total.max(1) as f64,
+        if st.complete {
+            "bake complete"
+        } else {
+            "not complete"
+        }
+    );
+    if !st.missing.is_empty() {
+        println!("  to do: {}", some_of(&st.missing));
+    }
+    Ok(())
+}
+
+/// `rangewalk bake --finish`: every image checked, the bake sealed.
+fn bake_finish(dir: &Path) -> Result<()> {
+    let st = bake::status::finish(dir)?;
+    if !st.missing.is_empty() {
+        bail!(
+            "{}: {} of {} images missing or damaged: {}; run their shards again (or the same bake or slurm command), then finish again",
+            dir.display(),
+            st.missing.len(),
+            st.total,
+            some_of(&st.missing)
+        );
+    }
+    println!(
+        "bake complete: {}: {} images read back against their checksums",
+        dir.display(),
+        st.total
+    );
+    Ok(())
+}
+
+#[derive(clap::Args)]
+struct SlurmArgs {
+    scene: PathBuf,
+    /// Quality in [0, 1] of every stage: views, times, radiosity.
+    #[arg(long)]
+    quality: f32,
+    /// Bake directory, on a filesystem every node sees; the job scripts go
+    /// into its `slurm/` folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Tasks of the bake array (each renders every n-th image).
+    #[arg(long)]
+    tasks: u32,
+    #[command(flatten)]
+    options: BakeOptions,
+    /// Slurm partition of every job.
+    #[arg(long)]
+    partition: Option<String>,
+    /// Slurm time limit of every job (minutes, MM:SS, HH:MM:SS or D-HH:MM:SS).
+    #[arg(long)]
+    time_limit: Option<String>,
+    /// CPUs of every job; the renderer uses that many threads.
+    #[arg(long)]
+    cpus_per_task: Option<u32>,
+    /// Submit the jobs with sbatch and print their ids.
+    #[arg(long)]
+    submit: bool,
+}
+
+/// `rangewalk slurm`: the job scripts of a distributed bake, submitted or
+/// with the commands that submit them.
+fn slurm_command(a: SlurmArgs) -> Result<()> {
+    use bake::slurm;
+    let quality = Quality::new(a.quality).context("--quality")?;
+    let s = load(&a.scene)?;
+    let (settings, why) = a.options.settings(&s, quality)?;
+    if a.tasks == 0 {
+        bail!("--tasks must be at least 1");
+    }
+    bake::check_resumable(&s, &a.out, &settings)?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let absolute =
+        |p: &Path| std::fs::canonicalize(p).with_context(|| format!("resolving {}", p.display()));
+    let (dir, scene) = (absolute(&a.out)?, absolute(&a.scene)?);
+    let program = absolute(&std::env::current_exe().context("finding the rangewalk binary")?)?;
+    let mut words = vec![
+        scene.to_string_lossy().into_owned(),
+        "--quality".into(),
+        quality.get().to_string(),
+        "--out".into(),
+        dir.to_string_lossy().into_owned(),
+    ];
+    words.extend(a.options.words());
+    let job = slurm::JobOptions {
+        partition: a.partition,
+        time_limit: a.time_limit,
+        cpus_per_task: a.cpus_per_task,
+    };
+    let scripts = slurm::write_scripts(&dir, &program, &words, a.tasks, &job)?;
+    println!("{why}");
+    println!(
+        "job scripts for {} tasks in {}:",
+        a.tasks,
+        dir.join(bake::SLURM_DIR).display()
+    );
+    for p in [&scripts.prepare, &scripts.bake, &scripts.finish] {
+        println!("  {}", p.display());
+    }
+    if a.submit {
+        let ids = slurm::submit(&scripts)?;
+        println!("submitted {} as job {}", slurm::PREPARE, ids.prepare);
+        println!(
+            "submitted {} as job {} (tasks 0-{}, after job {})",
+            slurm::BAKE,
+            ids.bake,
+            a.tasks - 1,
+            ids.prepare
+        );
+        println!(
+            "submitted {} as job {} (after job {})",
+            slurm::FINISH,
+            ids.finish,
+            ids.bake
+        );
+        println!(
+            "watch: squeue -j {},{},{}; rangewalk bake --status {}",
+            ids.prepare,
+            ids.bake,
+            ids.finish,
+            dir.display()
+        );
+    } else {
+        println!("submit them with:\n{}", slurm::submit_commands(&scripts));
     }
     Ok(())
 }

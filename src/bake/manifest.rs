@@ -131,11 +131,16 @@ pub fn recorded(path: &Path, expected: Option<&str>) -> Option<String> {
 
 /// Writes `bytes` to a temporary file beside `target` and renames it into
 /// place, so that no reader, and no later run after a kill, sees a partial
-/// file under the final name.
+/// file under the final name. The temporary name holds the process id and
+/// the time, so that shards on different nodes of a shared filesystem
+/// (where process ids repeat) never write into one temporary file.
 pub fn write_atomically(target: &Path, bytes: &[u8]) -> Result<()> {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
     let mut name = std::ffi::OsString::from(".");
     name.push(target.file_name().unwrap_or_default());
-    name.push(format!(".{}.partial", std::process::id()));
+    name.push(format!(".{}.{nanos}.partial", std::process::id()));
     let tmp = target.with_file_name(name);
     let result = fs::write(&tmp, bytes)
         .and_then(|()| fs::rename(&tmp, target))

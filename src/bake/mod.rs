@@ -12,6 +12,8 @@
 //! shard or thread count renders it: a killed bake started again renders
 //! only what is missing or damaged and ends identical to an uninterrupted
 //! one, and shards `i/n` together make exactly the single-machine bake.
+//! That is what lets a bake run as a Slurm job array (`slurm`), watched
+//! and finished from the directory alone (`status`).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -35,6 +37,8 @@ use crate::scene::Scene;
 
 pub mod manifest;
 pub mod size;
+pub mod slurm;
+pub mod status;
 
 pub use manifest::{ImageEntry, Manifest};
 
@@ -42,6 +46,8 @@ pub use manifest::{ImageEntry, Manifest};
 pub const DIRECT: &str = "direct";
 pub const INDIRECT: &str = "indirect";
 pub const DIFFUSE_DIRECT: &str = "diffuse_direct";
+/// The folder of a bake directory that holds its Slurm job scripts and logs.
+pub const SLURM_DIR: &str = "slurm";
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
@@ -209,46 +215,9 @@ pub fn run(
     engine: &mut dyn InstancedEngine,
     plan: impl FnOnce(&mut dyn InstancedEngine) -> Result<Plan>,
 ) -> Result<Summary> {
-    ensure!(settings.spp > 0, "--spp must be at least 1");
-    ensure!(settings.size > 0, "--size must be at least 1");
-    let quality = Quality::new(settings.quality).context("--quality")?;
-    let hash = ContentHash::of(scene)?;
     let mut summary = Summary::default();
-    let mut manifest = if dir.join(manifest::MANIFEST).exists() {
-        let m = Manifest::read(dir)?;
-        check_fits(&m, dir, &hash, settings)?;
-        m
-    } else {
-        if dir.exists() && dir.read_dir()?.next().is_some() {
-            bail!(
-                "{} exists and is not a bake (no {}); refusing to write into it",
-                dir.display(),
-                manifest::MANIFEST
-            );
-        }
-        let start = Instant::now();
-        let plan = plan(engine)?;
-        summary.plan_seconds = Some(start.elapsed().as_secs_f64());
-        ensure!(!plan.views.is_empty(), "the plan has no views");
-        for (i, v) in plan.views.iter().enumerate() {
-            ensure!(!v.times.is_empty(), "the plan gives view {i} no times");
-        }
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        let m = Manifest {
-            format: manifest::FORMAT.into(),
-            version: manifest::VERSION,
-            scene: std::fs::canonicalize(&scene.source).unwrap_or_else(|_| scene.source.clone()),
-            scene_hash: hash,
-            settings: *settings,
-            images: image_entries(&plan),
-            plan,
-            complete: false,
-        };
-        m.write(dir)?;
-        m
-    };
-    std::fs::create_dir_all(dir.join(manifest::IMAGES))
-        .with_context(|| format!("creating {}", dir.join(manifest::IMAGES).display()))?;
+    let mut manifest = start_or_resume(scene, dir, settings, engine, plan, &mut summary)?;
+    let quality = Quality::new(settings.quality).context("--quality")?;
     summary.total = manifest.images.len();
 
     let mine: Vec<usize> = (0..manifest.images.len())
@@ -307,40 +276,123 @@ pub fn run(
         summary.render_seconds = start.elapsed().as_secs_f64();
     }
 
-    // Gather every shard's checksums; when none is missing, check every
-    // image once more and mark the bake complete.
-    let recorded: Vec<Option<String>> = manifest
-        .images
-        .iter()
-        .map(|e| manifest::recorded(&dir.join(&e.file), e.fnv1a64.as_deref()))
-        .collect();
-    summary.finished = recorded.iter().flatten().count();
+    // When no image of any shard is missing, check every image once more
+    // and mark the bake complete.
+    summary.finished = status::done(dir, &manifest);
     if summary.finished == summary.total && !manifest.complete {
-        let damaged: Vec<&str> = manifest
-            .images
-            .iter()
-            .zip(&recorded)
-            .zip(&checked)
-            .filter(|((e, sum), &ok)| !ok && !manifest::verify(&dir.join(&e.file), sum.as_deref()))
-            .map(|((e, _), _)| e.file.as_str())
-            .collect();
-        if damaged.is_empty() {
-            for (e, sum) in manifest.images.iter_mut().zip(recorded) {
-                e.fnv1a64 = sum;
-            }
-            manifest.complete = true;
-            manifest.write(dir)?;
-        } else {
-            summary.finished -= damaged.len();
+        let bad = status::seal(dir, &mut manifest, &checked)?;
+        if !bad.is_empty() {
+            summary.finished -= bad.len();
             eprintln!(
                 "warning: {} damaged since they were written: {}; run the bake again to re-render them",
-                damaged.len(),
-                damaged.join(", ")
+                bad.len(),
+                bad.join(", ")
             );
         }
     }
     summary.complete = manifest.complete;
     Ok(summary)
+}
+
+/// The object-space stages alone, run once before the image shards of a
+/// distributed bake: starts the bake in `dir` (the plan and the manifest),
+/// or checks the one there, and solves radiosity if the images need it and
+/// it is not solved yet. Renders no image.
+pub fn prepare(
+    scene: &Scene,
+    dir: &Path,
+    settings: &Settings,
+    engine: &mut dyn InstancedEngine,
+    plan: impl FnOnce(&mut dyn InstancedEngine) -> Result<Plan>,
+) -> Result<Summary> {
+    let mut summary = Summary::default();
+    let manifest = start_or_resume(scene, dir, settings, engine, plan, &mut summary)?;
+    if settings.indirect == IndirectSource::Radiosity {
+        let quality = Quality::new(settings.quality).context("--quality")?;
+        summary.radiosity_seconds = radiosity_stage(scene, dir, quality, engine)?.2;
+    }
+    summary.total = manifest.images.len();
+    summary.finished = status::done(dir, &manifest);
+    summary.complete = manifest.complete;
+    Ok(summary)
+}
+
+/// Refuses to go on with the bake in `dir` when it was made from another
+/// scene or with other settings, or when `dir` holds something that is no
+/// bake; a missing or empty directory passes.
+pub fn check_resumable(scene: &Scene, dir: &Path, settings: &Settings) -> Result<()> {
+    if !dir.join(manifest::MANIFEST).exists() {
+        return check_fresh(dir);
+    }
+    check_fits(
+        &Manifest::read(dir)?,
+        dir,
+        &ContentHash::of(scene)?,
+        settings,
+    )
+}
+
+/// Refuses a directory without a bake that holds anything but the job
+/// scripts of a distributed bake: it is someone else's.
+fn check_fresh(dir: &Path) -> Result<()> {
+    let foreign = match dir.read_dir() {
+        Ok(mut entries) => entries.any(|e| e.map_or(true, |e| e.file_name() != SLURM_DIR)),
+        Err(_) => false,
+    };
+    if foreign {
+        bail!(
+            "{} exists and is not a bake (no {}); refusing to write into it",
+            dir.display(),
+            manifest::MANIFEST
+        );
+    }
+    Ok(())
+}
+
+/// The bake's manifest: read and checked against this scene and these
+/// settings, or, when starting, planned (with `plan`) and written.
+fn start_or_resume(
+    scene: &Scene,
+    dir: &Path,
+    settings: &Settings,
+    engine: &mut dyn InstancedEngine,
+    plan: impl FnOnce(&mut dyn InstancedEngine) -> Result<Plan>,
+    summary: &mut Summary,
+) -> Result<Manifest> {
+    ensure!(settings.spp > 0, "--spp must be at least 1");
+    ensure!(settings.size > 0, "--size must be at least 1");
+    Quality::new(settings.quality).context("--quality")?;
+    let hash = ContentHash::of(scene)?;
+    let manifest = if dir.join(manifest::MANIFEST).exists() {
+        let m = Manifest::read(dir)?;
+        check_fits(&m, dir, &hash, settings)?;
+        m
+    } else {
+        check_fresh(dir)?;
+        let start = Instant::now();
+        let plan = plan(engine)?;
+        summary.plan_seconds = Some(start.elapsed().as_secs_f64());
+        ensure!(!plan.views.is_empty(), "the plan has no views");
+        for (i, v) in plan.views.iter().enumerate() {
+            ensure!(!v.times.is_empty(), "the plan gives view {i} no times");
+        }
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let m = Manifest {
+            format: manifest::FORMAT.into(),
+            version: manifest::VERSION,
+            scene: std::fs::canonicalize(&scene.source).unwrap_or_else(|_| scene.source.clone()),
+            scene_hash: hash,
+            settings: *settings,
+            images: image_entries(&plan),
+            plan,
+            complete: false,
+        };
+        m.write(dir)?;
+        m
+    };
+    std::fs::create_dir_all(dir.join(manifest::IMAGES))
+        .with_context(|| format!("creating {}", dir.join(manifest::IMAGES).display()))?;
+    Ok(manifest)
 }
 
 /// Refuses a bake made from another scene or with other settings, saying

@@ -1,0 +1,117 @@
+//! How far a bake is, seen from its directory alone: for watching a bake
+//! that runs elsewhere (as Slurm array tasks on other nodes), and for the
+//! last step of a distributed bake, which checks every image and marks the
+//! bake complete.
+
+use std::path::Path;
+
+use anyhow::{bail, Result};
+use rayon::prelude::*;
+
+use super::manifest::{self, Manifest, RADIOSITY};
+use super::IndirectSource;
+use crate::radiosity::bake as radiosity_bake;
+
+/// What a bake directory holds now.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Status {
+    /// Images of the whole bake.
+    pub total: usize,
+    /// Images written with their checksum recorded (not read back).
+    pub done: usize,
+    pub complete: bool,
+    /// Whether the radiosity stage is solved; `None` where the images
+    /// trace indirect light and need none.
+    pub radiosity: Option<bool>,
+    /// Files of the images not done yet, in manifest order.
+    pub missing: Vec<String>,
+}
+
+/// Counts the done images of the bake in `dir` from what is on disk,
+/// cheaply: an image counts when its file and its checksum exist.
+pub fn status(dir: &Path) -> Result<Status> {
+    if !dir.join(manifest::MANIFEST).exists() {
+        bail!(
+            "{} holds no bake yet (no {}): it is made by the first job (`rangewalk bake --prepare`) or the first run of the bake",
+            dir.display(),
+            manifest::MANIFEST
+        );
+    }
+    let m = Manifest::read(dir)?;
+    let missing: Vec<String> = m
+        .images
+        .iter()
+        .filter(|e| !is_done(dir, e))
+        .map(|e| e.file.clone())
+        .collect();
+    Ok(Status {
+        total: m.images.len(),
+        done: m.images.len() - missing.len(),
+        complete: m.complete,
+        radiosity: radiosity_solved(dir, &m),
+        missing,
+    })
+}
+
+/// Reads every image of the bake in `dir` back against its recorded
+/// checksum and, when none is missing or damaged, records the checksums in
+/// the manifest and marks the bake complete. Returns the status after it;
+/// its `missing` lists the images missing or damaged.
+pub fn finish(dir: &Path) -> Result<Status> {
+    let mut m = Manifest::read(dir)?;
+    let unchecked = vec![false; m.images.len()];
+    let bad = seal(dir, &mut m, &unchecked)?;
+    Ok(Status {
+        total: m.images.len(),
+        done: m.images.len() - bad.len(),
+        complete: m.complete && bad.is_empty(),
+        radiosity: radiosity_solved(dir, &m),
+        missing: bad,
+    })
+}
+
+fn radiosity_solved(dir: &Path, m: &Manifest) -> Option<bool> {
+    (m.settings.indirect == IndirectSource::Radiosity)
+        .then(|| dir.join(RADIOSITY).join(radiosity_bake::MANIFEST).exists())
+}
+
+/// How many images of `m` are done (as [`status`] counts them).
+pub(super) fn done(dir: &Path, m: &Manifest) -> usize {
+    m.images.iter().filter(|e| is_done(dir, e)).count()
+}
+
+fn is_done(dir: &Path, e: &manifest::ImageEntry) -> bool {
+    let path = dir.join(&e.file);
+    path.exists() && manifest::recorded(&path, e.fnv1a64.as_deref()).is_some()
+}
+
+/// Verifies the images not marked in `checked` and, when every image is
+/// finished and undamaged, records the checksums in the manifest and marks
+/// it complete (written atomically). Returns the files missing or damaged.
+pub(super) fn seal(dir: &Path, m: &mut Manifest, checked: &[bool]) -> Result<Vec<String>> {
+    let recorded: Vec<Option<String>> = m
+        .images
+        .iter()
+        .map(|e| manifest::recorded(&dir.join(&e.file), e.fnv1a64.as_deref()))
+        .collect();
+    // Reading images back is the finishing job's whole work: on all its
+    // cores.
+    let bad: Vec<String> = m
+        .images
+        .par_iter()
+        .zip(&recorded)
+        .zip(checked)
+        .filter(|((e, sum), &ok)| {
+            sum.is_none() || (!ok && !manifest::verify(&dir.join(&e.file), sum.as_deref()))
+        })
+        .map(|((e, _), _)| e.file.clone())
+        .collect();
+    if bad.is_empty() && !m.complete {
+        for (e, sum) in m.images.iter_mut().zip(recorded) {
+            e.fnv1a64 = sum;
+        }
+        m.complete = true;
+        m.write(dir)?;
+    }
+    Ok(bad)
+}

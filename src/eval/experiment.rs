@@ -385,7 +385,7 @@ fn run_quality(
     for (i, &t) in ctx.times.iter().enumerate() {
         let start = Instant::now();
         let indirect = series.indirect_at(t);
-        let cache = IrradianceCache::new(&simplified, &indirect);
+        let cache = IrradianceCache::new(&simplified, &indirect)?;
         let interpolation_s = start.elapsed().as_secs_f64();
         let start = Instant::now();
         engine.set_transforms(&ctx.scene.at(t))?;

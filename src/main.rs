@@ -223,6 +223,9 @@ fn load(path: &PathBuf) -> Result<Scene> {
             scene.dropped_triangles
         );
     }
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
     Ok(scene)
 }
 

@@ -259,9 +259,14 @@ mod lookup {
         let empty = IrradianceCache::new(&Simplified::default(), &[]).unwrap();
         assert_eq!(empty.irradiance(0, true, Vec3::ZERO, Vec3::Z), Vec3::ZERO);
         // Values for another set of records are refused, naming both counts.
-        let e = IrradianceCache::new(&s, &values[..3]).err().expect("3 values accepted");
+        let e = IrradianceCache::new(&s, &values[..3])
+            .err()
+            .expect("3 values accepted");
         let n = s.records.len();
-        assert!(format!("{e}").contains(&format!("3 irradiance values for {n} records")), "{e}");
+        assert!(
+            format!("{e}").contains(&format!("3 irradiance values for {n} records")),
+            "{e}"
+        );
         let mut long = values.clone();
         long.push(Vec3::ONE);
         assert!(IrradianceCache::new(&s, &long).is_err());
@@ -583,9 +588,9 @@ fn gathered_records_give_path_traced_indirect_light() {
 mod cli {
     use super::*;
     use rangewalk::radiosity::bake;
-    use std::fs;
     use rangewalk::radiosity::temporal::TimeSeries;
     use rangewalk::radiosity::{IndirectSolution, SolveStats};
+    use std::fs;
     use std::process::{Command, Output};
 
     pub fn rangewalk(args: &[&str]) -> Output {
@@ -677,7 +682,10 @@ mod cli {
             let r = rangewalk(&args);
             let err = String::from_utf8_lossy(&r.stderr);
             assert!(!r.status.success(), "{scene}: bake accepted");
-            assert!(err.contains("differs") && err.contains(what), "{scene}: {err}");
+            assert!(
+                err.contains("differs") && err.contains(what),
+                "{scene}: {err}"
+            );
         };
         refused(&scene_path("cornell-box-1e4"), "text");
         let copy = tmp.path().join("copy");
@@ -688,7 +696,10 @@ mod cli {
         let edited = text.replacen("[0.63, 0.065, 0.05]", "[0.63, 0.065, 0.06]", 1);
         assert_ne!(edited, text);
         fs::write(copy.join("scene.toml"), edited).unwrap();
-        refused(copy.join("scene.toml").to_str().unwrap(), "material `red` changed");
+        refused(
+            copy.join("scene.toml").to_str().unwrap(),
+            "material `red` changed",
+        );
     }
 }
 

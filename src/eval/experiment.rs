@@ -190,6 +190,7 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
             scene.dropped_triangles
         ));
     }
+    notes.extend(scene.warnings.iter().cloned());
     if scene.is_static() {
         notes.push(
             "static scene: one time sample, no temporal decomposition (one radiosity \

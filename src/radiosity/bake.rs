@@ -119,12 +119,7 @@ pub struct BakeInfo {
 /// Writes `simplified` and `series`, solved for `scene`, under `dir`,
 /// replacing an earlier bake there. The scene's file and content hash are
 /// recorded, so that [`load_for`] can refuse the bake for another scene.
-pub fn save(
-    dir: &Path,
-    scene: &Scene,
-    simplified: &Simplified,
-    series: &TimeSeries,
-) -> Result<()> {
+pub fn save(dir: &Path, scene: &Scene, simplified: &Simplified, series: &TimeSeries) -> Result<()> {
     let scene_hash = ContentHash::of(scene)?;
     let n = simplified.records.len();
     ensure!(

@@ -28,6 +28,7 @@ use crate::scene::Texture;
 mod color;
 pub mod exr_io;
 #[cfg(feature = "oiio")]
+#[allow(unsafe_code)]
 mod oiio;
 mod planes;
 pub mod png_io;

@@ -258,6 +258,13 @@ fn run(cli: Cli) -> Result<()> {
                 bail!("--spp must be at least 1");
             }
             indirect.check()?;
+            image::check_output("--out", &out, image::OutputKind::Exr)?;
+            if let Some(p) = &preview {
+                image::check_output("--preview", p, image::OutputKind::Png)?;
+            }
+            if let Some(p) = &hdr {
+                image::check_output("--hdr", p, image::OutputKind::Hdr)?;
+            }
             let s = load(&scene)?;
             view.check_time(&s)?;
             let camera = view.camera(&s)?;

@@ -8,8 +8,11 @@ use std::process::Command;
 use glam::Vec3;
 use rangewalk::accel::{self, Backend, InstancedEngine};
 use rangewalk::camera::{Camera, Projection};
+#[cfg(feature = "embree")]
 use rangewalk::image::NO_HIT;
-use rangewalk::plan::{self, fitness, idimage, lights, views, IdView, Plan, PlanOptions};
+#[cfg(feature = "embree")]
+use rangewalk::plan::lights;
+use rangewalk::plan::{self, fitness, idimage, views, IdView, Plan, PlanOptions};
 use rangewalk::radiosity::Quality;
 use rangewalk::scene::{Scene, ViewSpace};
 

@@ -23,6 +23,17 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// Runs `args`, which must fail with `needle` in the message.
+fn fails_with(args: &[&str], needle: &str) {
+    let o = rangewalk(args);
+    assert!(!o.status.success(), "{args:?} succeeded");
+    assert!(
+        stderr(&o).contains(needle),
+        "{args:?}: `{needle}` not in {}",
+        stderr(&o)
+    );
+}
+
 fn render_args<'a>(scene: &'a str, out: &'a str) -> Vec<&'a str> {
     with(scene, out, &[])
 }
@@ -92,13 +103,7 @@ fn bad_inputs_fail_with_a_message_and_no_output() {
         (with(&cb, out_s, &[("--time", "NaN")]), "time"),
     ];
     for (args, needle) in cases {
-        let o = rangewalk(&args);
-        assert!(!o.status.success(), "{args:?} succeeded");
-        assert!(
-            stderr(&o).contains(needle),
-            "{args:?}: `{needle}` not in {}",
-            stderr(&o)
-        );
+        fails_with(&args, needle);
         assert!(!out.exists(), "{args:?} left {}", out.display());
     }
     // An output folder that does not exist: the error names the file.
@@ -138,13 +143,7 @@ fn outputs_are_checked_before_the_work_starts() {
         ),
     ];
     for (args, needle) in cases {
-        let o = rangewalk(&args);
-        assert!(!o.status.success(), "{args:?} succeeded");
-        assert!(
-            stderr(&o).contains(needle),
-            "{args:?}: `{needle}` not in {}",
-            stderr(&o)
-        );
+        fails_with(&args, needle);
     }
     // The same outputs with the real scene: nothing is left behind.
     let o = rangewalk(&render_args(&cb, txt.to_str().unwrap()));

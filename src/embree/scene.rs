@@ -473,13 +473,17 @@ mod tests {
         assert!(device.check(|| "nothing".into()).is_ok());
     }
 
+    fn unit_triangle() -> MeshGeometry {
+        MeshGeometry {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            triangles: vec![[0, 1, 2]],
+        }
+    }
+
     #[test]
     fn non_finite_transforms_are_refused() {
         let device = Device::new().unwrap();
-        let mesh = MeshGeometry {
-            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
-            triangles: vec![[0, 1, 2]],
-        };
+        let mesh = unit_triangle();
         let mut scene = InstancedScene::new(&device, &[mesh], &[Affine3A::IDENTITY]).unwrap();
         let bad = Affine3A::from_translation(Vec3::new(f32::NAN, 0.0, 0.0));
         let msg = format!("{:#}", scene.set_transforms(&[bad]).unwrap_err());
@@ -491,10 +495,7 @@ mod tests {
     #[test]
     fn a_refused_set_of_transforms_leaves_the_scene_as_it_was() {
         let device = Device::new().unwrap();
-        let mesh = MeshGeometry {
-            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
-            triangles: vec![[0, 1, 2]],
-        };
+        let mesh = unit_triangle();
         let meshes = [mesh.clone(), mesh];
         let far = Affine3A::from_translation(Vec3::new(0.0, 0.0, 100.0));
         let mut scene = InstancedScene::new(&device, &meshes, &[Affine3A::IDENTITY, far]).unwrap();
@@ -516,10 +517,7 @@ mod tests {
     #[test]
     fn query_checks_report_embree_errors() {
         let device = Device::new().unwrap();
-        let mesh = MeshGeometry {
-            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
-            triangles: vec![[0, 1, 2]],
-        };
+        let mesh = unit_triangle();
         let scene = InstancedScene::new(&device, &[mesh], &[Affine3A::IDENTITY]).unwrap();
         scene.check_queries().unwrap();
         let geometry =

@@ -31,7 +31,8 @@ fn bake(c: &mut Criterion) {
     .expect("ray engine");
     let simplified = radiosity::simplify(&scene, solver.as_mut(), q).expect("simplification");
     let series = temporal::decompose(&scene, &simplified, solver.as_mut(), q).expect("radiosity");
-    let cache = IrradianceCache::new(&simplified, &series.indirect_at(TIME));
+    let cache =
+        IrradianceCache::new(&simplified, &series.indirect_at(TIME)).expect("irradiance cache");
     // The first base view of the Cornell box: the view space's left end.
     let camera = Camera::looking(
         glam::Vec3::new(78.0, 273.0, -800.0),

@@ -46,7 +46,7 @@ fn lookup(c: &mut Criterion) {
     let simplified = simplify(&scene, engine.as_mut(), quality).expect("simplification");
     engine.set_transforms(&poses).expect("posing the scene");
     let solution = solve(&scene, &simplified, engine.as_ref(), TIME, quality).expect("solve");
-    let cache = IrradianceCache::new(&simplified, &solution.indirect);
+    let cache = IrradianceCache::new(&simplified, &solution.indirect).expect("irradiance cache");
 
     // World-space triangles of the emitters, to aim shadow rays at.
     let mut light = Vec::new();

@@ -6,6 +6,25 @@
 
 #include "rust/cxx.h"
 
+#include <exception>
+
+// cxx's own handler catches std::exception only; anything else thrown
+// through a bridged call would cross into Rust, which is undefined. This
+// replaces it (cxx looks it up by this name) so that every exception
+// becomes a Rust error.
+namespace rust {
+namespace behavior {
+template <typename Try, typename Fail>
+static void trycatch(Try &&func, Fail &&fail) noexcept try {
+    func();
+} catch (const std::exception &e) {
+    fail(e.what());
+} catch (...) {
+    fail("OpenImageIO threw an exception that is not a std::exception");
+}
+}  // namespace behavior
+}  // namespace rust
+
 namespace rangewalk {
 namespace oiio {
 

@@ -4,12 +4,20 @@
 //!
 //! The pipeline and the module boundaries are described in `DESIGN.md` of the
 //! project; this crate's modules follow it one to one.
+//!
+//! `unsafe` lives only at the two foreign boundaries, Embree (`embree`,
+//! private: no bindgen type reaches the public API) and OpenImageIO
+//! (`image::oiio`); everywhere else it is refused by the compiler, and
+//! every `unsafe` block there says why it holds.
+#![deny(unsafe_code)]
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 pub mod accel;
 pub mod bake;
 pub mod camera;
 #[cfg(feature = "embree")]
-pub mod embree;
+#[allow(unsafe_code)]
+mod embree;
 pub mod eval;
 pub mod export;
 pub mod image;

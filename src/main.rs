@@ -227,6 +227,9 @@ fn load(path: &PathBuf) -> Result<Scene> {
             scene.dropped_triangles
         );
     }
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
     Ok(scene)
 }
 
@@ -259,6 +262,13 @@ fn run(cli: Cli) -> Result<()> {
                 bail!("--spp must be at least 1");
             }
             indirect.check()?;
+            image::check_output("--out", &out, image::OutputKind::Exr)?;
+            if let Some(p) = &preview {
+                image::check_output("--preview", p, image::OutputKind::Png)?;
+            }
+            if let Some(p) = &hdr {
+                image::check_output("--hdr", p, image::OutputKind::Hdr)?;
+            }
             let s = load(&scene)?;
             view.check_time(&s)?;
             let camera = view.camera(&s)?;
@@ -277,7 +287,6 @@ fn run(cli: Cli) -> Result<()> {
                 }
                 IndirectArg::Radiosity => render_multipass(
                     &s,
-                    &scene,
                     engine.as_mut(),
                     &camera,
                     view.time,
@@ -337,7 +346,7 @@ fn run(cli: Cli) -> Result<()> {
             let s = load(&scene)?;
             let mut engine = engine_at_start(&s, backend)?;
             let (simplified, series) = radiosity::simplify_and_decompose(&s, engine.as_mut(), q)?;
-            radiosity_bake::save_with(&out, &scene, &simplified, &series)?;
+            radiosity_bake::save(&out, &s, &simplified, &series)?;
             report_radiosity(&s, &simplified, &series);
             println!("bake written to {}", out.display());
         }
@@ -387,7 +396,6 @@ fn write_outputs(
 /// baked if asked), interpolated to `time`.
 fn render_multipass(
     s: &Scene,
-    scene_path: &Path,
     engine: &mut dyn InstancedEngine,
     camera: &Camera,
     time: f32,
@@ -404,7 +412,7 @@ fn render_multipass(
             let q = q.unwrap_or(Quality::new(0.5)?);
             let (simplified, series) = radiosity::simplify_and_decompose(s, engine, q)?;
             if let Some(dir) = bake_dir {
-                radiosity_bake::save_with(dir, scene_path, &simplified, &series)?;
+                radiosity_bake::save(dir, s, &simplified, &series)?;
                 eprintln!("bake written to {}", dir.display());
             }
             (simplified, series)
@@ -413,13 +421,13 @@ fn render_multipass(
     engine
         .set_transforms(&s.at(time))
         .with_context(|| format!("posing the scene at t = {time}"))?;
-    let cache = IrradianceCache::new(&simplified, &series.indirect_at(time));
+    let cache = IrradianceCache::new(&simplified, &series.indirect_at(time))?;
     multipass::render(s, &*engine, camera, time, settings, &cache)
 }
 
 /// A bake made for this scene (at quality `q`, if given).
 fn load_bake(s: &Scene, dir: &Path, q: Option<Quality>) -> Result<(Simplified, TimeSeries)> {
-    let (simplified, series, info) = radiosity_bake::load_with_info(dir)?;
+    let (simplified, series, info) = radiosity_bake::load_for(dir, s)?;
     if let Some(q) = q.filter(|q| q.get() != info.quality) {
         bail!(
             "{} was baked at quality {}, not {}: pass --quality {} or another --bake directory",
@@ -427,21 +435,6 @@ fn load_bake(s: &Scene, dir: &Path, q: Option<Quality>) -> Result<(Simplified, T
             info.quality,
             q.get(),
             info.quality
-        );
-    }
-    let triangles: usize = s.objects.iter().map(|o| o.mesh.triangles.len()).sum();
-    let fits = simplified.stats.initial_surfaces == triangles
-        && simplified
-            .records
-            .iter()
-            .all(|r| (r.object as usize) < s.objects.len());
-    if !fits {
-        bail!(
-            "{} was baked from {} ({} triangles), which does not match {} ({triangles} triangles)",
-            dir.display(),
-            info.scene.display(),
-            simplified.stats.initial_surfaces,
-            s.source.display()
         );
     }
     eprintln!(

@@ -23,6 +23,17 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// Runs `args`, which must fail with `needle` in the message.
+fn fails_with(args: &[&str], needle: &str) {
+    let o = rangewalk(args);
+    assert!(!o.status.success(), "{args:?} succeeded");
+    assert!(
+        stderr(&o).contains(needle),
+        "{args:?}: `{needle}` not in {}",
+        stderr(&o)
+    );
+}
+
 fn render_args<'a>(scene: &'a str, out: &'a str) -> Vec<&'a str> {
     with(scene, out, &[])
 }
@@ -92,13 +103,7 @@ fn bad_inputs_fail_with_a_message_and_no_output() {
         (with(&cb, out_s, &[("--time", "NaN")]), "time"),
     ];
     for (args, needle) in cases {
-        let o = rangewalk(&args);
-        assert!(!o.status.success(), "{args:?} succeeded");
-        assert!(
-            stderr(&o).contains(needle),
-            "{args:?}: `{needle}` not in {}",
-            stderr(&o)
-        );
+        fails_with(&args, needle);
         assert!(!out.exists(), "{args:?} left {}", out.display());
     }
     // An output folder that does not exist: the error names the file.
@@ -106,6 +111,55 @@ fn bad_inputs_fail_with_a_message_and_no_output() {
     let o = rangewalk(&render_args(&cb, deep.to_str().unwrap()));
     assert!(!o.status.success());
     assert!(stderr(&o).contains("x.exr"), "{}", stderr(&o));
+}
+
+/// Outputs that cannot be written are found before any work: checked
+/// before the scene is even read (so a missing scene is not what fails),
+/// and an extension that is not the format written is an error.
+#[test]
+fn outputs_are_checked_before_the_work_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nope.toml");
+    let missing = missing.to_str().unwrap();
+    let cb = scene("cornell-box");
+    let exr = dir.path().join("x.exr");
+    let exr = exr.to_str().unwrap();
+    let txt = dir.path().join("x.txt");
+    let png = dir.path().join("p.png");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            render_args(missing, "/nonexistent/dir/x.exr"),
+            "folder /nonexistent/dir does not exist",
+        ),
+        (render_args(missing, txt.to_str().unwrap()), "`.txt`"),
+        (
+            with(missing, exr, &[("--preview", "/nonexistent/p.png")]),
+            "--preview",
+        ),
+        (with(missing, exr, &[("--preview", exr)]), "expected .png"),
+        (
+            with(missing, exr, &[("--hdr", png.to_str().unwrap())]),
+            "--hdr",
+        ),
+    ];
+    for (args, needle) in cases {
+        fails_with(&args, needle);
+    }
+    // The same outputs with the real scene: nothing is left behind.
+    let o = rangewalk(&render_args(&cb, txt.to_str().unwrap()));
+    assert!(!o.status.success() && !txt.exists());
+    assert!(std::fs::read_dir(dir.path()).unwrap().next().is_none());
+}
+
+/// A size whose image would not fit in memory is refused while parsing.
+#[test]
+fn absurd_sizes_are_refused_before_any_allocation() {
+    let cb = scene("cornell-box");
+    for size in ["100000x100000", "32768x32768", "0x16"] {
+        let o = rangewalk(&with(&cb, "/tmp/never.exr", &[("--size", size)]));
+        assert!(!o.status.success(), "{size} accepted");
+        assert!(stderr(&o).contains(size), "{size}: {}", stderr(&o));
+    }
 }
 
 #[test]

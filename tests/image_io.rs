@@ -92,6 +92,18 @@ fn default_back_end_round_trip_is_exact() {
     assert_eq!(files_in(dir.path()).len(), PROJECTIONS.len());
 }
 
+/// A file of `sample_image(Sphere)` written once by OpenImageIO and stored:
+/// every build's readers (the pure-Rust one included) must give back
+/// exactly the stored values, so the pure-Rust round trips above are tied
+/// to a file no pure-Rust code wrote.
+#[test]
+fn stored_file_reads_back_the_expected_values() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/image_io/sample-sphere.exr");
+    let expected = sample_image(Projection::Sphere);
+    assert_eq!(exr_io::read(&path).unwrap(), expected);
+    assert_eq!(read_exr(&path).unwrap(), expected);
+}
+
 #[cfg(feature = "oiio")]
 #[test]
 fn openimageio_and_exr_crate_read_each_others_files() {

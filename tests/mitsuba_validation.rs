@@ -424,6 +424,7 @@ fn texture_orientation_matches_mitsuba() {
         view_space: None,
         paths: Vec::new(),
         dropped_triangles: 0,
+        warnings: Vec::new(),
     };
     let camera = Camera::look_at(
         Vec3::new(0.0, 0.0, -3.0),

@@ -57,7 +57,7 @@ fn multipass(
 
 fn uniform_cache(scene: &Scene, e: Vec3) -> (Simplified, IrradianceCache) {
     let s = Simplified::whole(scene);
-    let cache = IrradianceCache::new(&s, &vec![e; s.records.len()]);
+    let cache = IrradianceCache::new(&s, &vec![e; s.records.len()]).unwrap();
     (s, cache)
 }
 
@@ -140,7 +140,7 @@ mod lookup {
         let (s, values) = grid(6, 0.5, |p| {
             Vec3::new((p.x * 7.0).sin().abs(), p.y * p.y, 1e3 + p.x)
         });
-        let cache = IrradianceCache::new(&s, &values);
+        let cache = IrradianceCache::new(&s, &values).unwrap();
         for (r, &v) in s.records.iter().zip(&values) {
             assert_eq!(cache.irradiance(0, true, r.position, r.normal), v);
         }
@@ -154,7 +154,7 @@ mod lookup {
                 Vec3::new(2.0 + q.x, 1.0 + 0.5 * q.y, 3.0 + 0.2 * q.x - 0.3 * q.y)
             };
             let (s, values) = grid(5, 0.8 * scale, f);
-            let cache = IrradianceCache::new(&s, &values);
+            let cache = IrradianceCache::new(&s, &values).unwrap();
             for (x, y) in points(200) {
                 let p = Vec3::new(x * 4.0 * scale, y * 4.0 * scale, 0.0);
                 let got = cache.irradiance(0, true, p, Vec3::Z);
@@ -195,7 +195,7 @@ mod lookup {
         s.records.extend(wall);
         s.patches.extend(wall_patches);
         values.extend(vec![Vec3::splat(100.0); floor]);
-        let cache = IrradianceCache::new(&s, &values);
+        let cache = IrradianceCache::new(&s, &values).unwrap();
         for (x, y) in points(100) {
             let on_floor = cache.irradiance(0, true, Vec3::new(0.05 * x, y, 0.0), Vec3::Z);
             let near = |a: Vec3, b: Vec3| ((a - b) / b).abs().max_element() < 1e-6;
@@ -220,7 +220,7 @@ mod lookup {
     #[test]
     fn missing_records_fall_back_to_the_scene_average() {
         let (s, values) = grid(2, 1.0, |p| Vec3::splat(1.0 + p.x));
-        let cache = IrradianceCache::new(&s, &values);
+        let cache = IrradianceCache::new(&s, &values).unwrap();
         // Area-weighted mean of a linear field over the square: its centre.
         assert!((cache.average() - Vec3::splat(2.0)).length() < 1e-5);
         assert_eq!(
@@ -247,7 +247,7 @@ mod lookup {
         values[2] = Vec3::INFINITY;
         values[3] = Vec3::splat(f32::NAN);
         values[4] = Vec3::splat(-1.0);
-        let cache = IrradianceCache::new(&s, &values);
+        let cache = IrradianceCache::new(&s, &values).unwrap();
         for p in [Vec3::ZERO, Vec3::ONE, Vec3::NAN, Vec3::splat(1e30), Vec3::X] {
             for n in [Vec3::Z, Vec3::ZERO, Vec3::NAN, -Vec3::Z, Vec3::splat(1e-30)] {
                 for object in [0, 1, u32::MAX] {
@@ -256,11 +256,20 @@ mod lookup {
                 }
             }
         }
-        let empty = IrradianceCache::new(&Simplified::default(), &[]);
+        let empty = IrradianceCache::new(&Simplified::default(), &[]).unwrap();
         assert_eq!(empty.irradiance(0, true, Vec3::ZERO, Vec3::Z), Vec3::ZERO);
-        // More values than records, or fewer: no panic.
-        let short = IrradianceCache::new(&s, &values[..3]);
-        assert!(short.irradiance(0, true, Vec3::ONE, Vec3::Z).is_finite());
+        // Values for another set of records are refused, naming both counts.
+        let e = IrradianceCache::new(&s, &values[..3])
+            .err()
+            .expect("3 values accepted");
+        let n = s.records.len();
+        assert!(
+            format!("{e}").contains(&format!("3 irradiance values for {n} records")),
+            "{e}"
+        );
+        let mut long = values.clone();
+        long.push(Vec3::ONE);
+        assert!(IrradianceCache::new(&s, &long).is_err());
     }
 }
 
@@ -280,7 +289,7 @@ fn each_side_is_looked_up_in_its_own_records() {
             values[p.back[k] as usize] = Vec3::splat(5.0);
         }
     }
-    let cache = IrradianceCache::new(&s, &values);
+    let cache = IrradianceCache::new(&s, &values).unwrap();
     let floor = s.patches.iter().find(|p| p.object == 0).unwrap();
     let n = floor.normal();
     let centre = (floor.vertices[0] + floor.vertices[1] + floor.vertices[2]) / 3.0;
@@ -528,8 +537,8 @@ fn multipass_indirect(
     s: &Simplified,
     e: &[Vec3],
 ) -> Vec<Vec3> {
-    let cache = IrradianceCache::new(s, e);
-    let none = IrradianceCache::new(s, &vec![Vec3::ZERO; s.records.len()]);
+    let cache = IrradianceCache::new(s, e).unwrap();
+    let none = IrradianceCache::new(s, &vec![Vec3::ZERO; s.records.len()]).unwrap();
     let st = settings(16, None, 5);
     let with = multipass(scene, cam, t, st, &cache).0;
     let without = multipass(scene, cam, t, st, &none).0;
@@ -581,6 +590,7 @@ mod cli {
     use rangewalk::radiosity::bake;
     use rangewalk::radiosity::temporal::TimeSeries;
     use rangewalk::radiosity::{IndirectSolution, SolveStats};
+    use std::fs;
     use std::process::{Command, Output};
 
     pub fn rangewalk(args: &[&str]) -> Output {
@@ -613,7 +623,7 @@ mod cli {
             quality: 0.5,
             stats: Default::default(),
         };
-        bake::save(&dir, &s, &series).unwrap();
+        bake::save(&dir, &scene, &s, &series).unwrap();
         let cb = scene_path("cornell-box");
         let out = tmp.path().join("mp.exr");
         let (d, o) = (dir.to_str().unwrap(), out.to_str().unwrap());
@@ -663,6 +673,33 @@ mod cli {
         // --bake and --quality belong to radiosity.
         let r = rangewalk(&["render", &cb, "--out", o, "--bake", d]);
         assert!(String::from_utf8_lossy(&r.stderr).contains("--indirect radiosity"));
+
+        // The bake fits only the scene it was made for: not the same box
+        // scaled (same triangle count), not a copy with a changed material.
+        let refused = |scene: &str, what: &str| {
+            let mut args = base.to_vec();
+            args[1] = scene;
+            let r = rangewalk(&args);
+            let err = String::from_utf8_lossy(&r.stderr);
+            assert!(!r.status.success(), "{scene}: bake accepted");
+            assert!(
+                err.contains("differs") && err.contains(what),
+                "{scene}: {err}"
+            );
+        };
+        refused(&scene_path("cornell-box-1e4"), "text");
+        let copy = tmp.path().join("copy");
+        fs::create_dir(&copy).unwrap();
+        let src = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box");
+        fs::copy(src.join("cornell-box.obj"), copy.join("cornell-box.obj")).unwrap();
+        let text = fs::read_to_string(src.join("scene.toml")).unwrap();
+        let edited = text.replacen("[0.63, 0.065, 0.05]", "[0.63, 0.065, 0.06]", 1);
+        assert_ne!(edited, text);
+        fs::write(copy.join("scene.toml"), edited).unwrap();
+        refused(
+            copy.join("scene.toml").to_str().unwrap(),
+            "material `red` changed",
+        );
     }
 }
 
@@ -714,7 +751,7 @@ mod with_solver {
         .unwrap();
         let s = rangewalk::radiosity::simplify(&scene, engine.as_mut(), q).unwrap();
         let solution = solve(&scene, &s, engine.as_ref(), 0.0, q).unwrap();
-        let cache = IrradianceCache::new(&s, &solution.indirect);
+        let cache = IrradianceCache::new(&s, &solution.indirect).unwrap();
         let cam = camera(&scene, 32);
         let mean_and_error = |indirect: multipass::Indirect| {
             let [a, b] = [1, 2].map(|seed| {

@@ -989,7 +989,8 @@ fn stiff_cornell_box_converges() {
         a.stats.iterations, a.stats.residual, b.stats.iterations, b.stats.residual
     );
     assert_finite(&b);
-    assert!(b.stats.residual < 1e-3, "residual {}", b.stats.residual);
+    // What docs/radiosity.md claims: the solver's own tolerance, 1e-5.
+    assert!(b.stats.residual < 1e-5, "residual {}", b.stats.residual);
     let mean = |s: &IndirectSolution| s.indirect.iter().map(|v| v.y).sum::<f32>();
     assert!(
         mean(&b) > 1.5 * mean(&a),

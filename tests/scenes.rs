@@ -28,6 +28,7 @@ fn every_bundled_scene_loads() {
             path.display()
         );
         assert_eq!(scene.dropped_triangles, 0, "{}", path.display());
+        assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
         n += 1;
     }
     assert!(n >= 5, "expected the five bundled scenes, found {n}");
@@ -158,5 +159,70 @@ fn scaled_cornell_boxes_are_scaled_copies() {
         let (cb, cs) = (base.camera("main").unwrap(), s.camera("main").unwrap());
         assert!((cb.position * scale - cs.position).length() <= 1e-5 * cs.position.length());
         assert!((cb.direction - cs.direction).length() < 1e-6);
+    }
+}
+
+/// Meshes as other tools write them (`tests/wavefront/`): each pattern
+/// loads with the fallback it needs and one warning naming its file, and
+/// what is really broken is an error naming the file and line.
+mod from_other_tools {
+    use super::*;
+    use rangewalk::scene::Material;
+
+    fn dir() -> PathBuf {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/wavefront")
+    }
+
+    fn diffuse(s: &Scene, object: &str) -> (Vec3, bool) {
+        let o = s.objects.iter().find(|o| o.name == object).unwrap();
+        let m: &Material = &s.materials[o.material];
+        match &m.bsdf {
+            Bsdf::Diffuse {
+                reflectance,
+                texture,
+            } => (*reflectance, texture.is_some()),
+            other => panic!("{object}: {other:?}"),
+        }
+    }
+
+    fn warnings_with<'a>(s: &'a Scene, needle: &str) -> Vec<&'a String> {
+        s.warnings.iter().filter(|w| w.contains(needle)).collect()
+    }
+
+    #[test]
+    fn patterns_of_other_tools_load_with_fallbacks() {
+        let s = Scene::load(dir().join("others.toml")).unwrap_or_else(|e| panic!("{e:#}"));
+        // No materials at all, and a missing MTL file: the default grey.
+        assert_eq!(diffuse(&s, "plain"), (Vec3::splat(0.5), false));
+        assert_eq!(diffuse(&s, "unshipped"), (Vec3::splat(0.5), false));
+        assert_eq!(warnings_with(&s, "gone.mtl").len(), 1, "{:#?}", s.warnings);
+        assert_eq!(warnings_with(&s, "no MTL material").len(), 2);
+        // Kd 1 1 1: lowered just below 1, with one warning.
+        assert_eq!(diffuse(&s, "white"), (Vec3::splat(0.99), false));
+        assert_eq!(warnings_with(&s, "`white`").len(), 1);
+        // map_Kd without Kd, behind options: the texture alone, whose
+        // white texel brings the product to 1, so it is lowered too.
+        assert_eq!(diffuse(&s, "wood"), (Vec3::splat(0.99), true));
+        assert_eq!(warnings_with(&s, "`wood`").len(), 1);
+        // A white texel under Kd below 1 is fine; the placement option
+        // `-s` is ignored with a warning naming the line.
+        assert_eq!(diffuse(&s, "tinted"), (Vec3::new(0.8, 0.7, 0.6), true));
+        assert_eq!(warnings_with(&s, "textured.mtl:12").len(), 1);
+        // A missing texture: Kd alone.
+        assert_eq!(diffuse(&s, "lost"), (Vec3::splat(0.4), false));
+        assert_eq!(warnings_with(&s, "missing.png").len(), 1);
+        assert_eq!(s.warnings.len(), 7, "{:#?}", s.warnings);
+    }
+
+    #[test]
+    fn a_face_cut_short_is_an_error_naming_the_line() {
+        let e = format!(
+            "{:#}",
+            Scene::load(dir().join("truncated.toml")).unwrap_err()
+        );
+        assert!(
+            e.contains("truncated.obj:8") && e.contains("2 corner"),
+            "{e}"
+        );
     }
 }

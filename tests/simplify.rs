@@ -199,7 +199,12 @@ fn counts_add_up_and_edges_respect_the_limit_on_every_backend() {
         check_invariants(&scene, &r);
         fates.push(r.objects.iter().map(|o| o.fate).collect::<Vec<_>>());
     }
-    assert!(fates.windows(2).all(|w| w[0] == w[1]), "{fates:?}");
+    // The engines agree; only where both exist (the pure-Rust build has one).
+    #[cfg(feature = "embree")]
+    {
+        assert_eq!(fates.len(), 2);
+        assert_eq!(fates[0], fates[1]);
+    }
 }
 
 #[test]

@@ -215,7 +215,7 @@ mod bake {
         let mut s = Simplified::whole(&scene);
         s.stats.seconds = 0.1 + 0.2;
         s.stats.visibility_rays = 12345;
-        save(dir, &s, &series).unwrap();
+        save(dir, &scene, &s, &series).unwrap();
         (s, series)
     }
 
@@ -241,7 +241,7 @@ mod bake {
         // Saving again replaces the bake.
         let mut other = series.clone();
         other.solutions[1].indirect[0] = Vec3::splat(42.0);
-        save(&dir, &s, &other).unwrap();
+        save(&dir, &cornell(), &s, &other).unwrap();
         assert_eq!(load(&dir).unwrap().1, other);
     }
 
@@ -253,7 +253,7 @@ mod bake {
         fs::write(dir.join("notes.txt"), "keep me").unwrap();
         let scene = cornell();
         let series = run(&scene, 0.0, |_, _| Vec3::ONE);
-        let e = save(&dir, &Simplified::whole(&scene), &series).unwrap_err();
+        let e = save(&dir, &scene, &Simplified::whole(&scene), &series).unwrap_err();
         assert!(format!("{e:#}").contains("not a bake directory"), "{e:#}");
         assert!(dir.join("notes.txt").exists());
     }
@@ -299,7 +299,7 @@ mod bake {
         load(&dir).unwrap();
 
         // Wrong version.
-        let v = original.replace("version = 2", "version = 99");
+        let v = original.replace("version = 3", "version = 99");
         assert_ne!(v, original);
         fs::write(&manifest, v).unwrap();
         expect_error(&dir, "manifest.toml", &["version", "99"]);

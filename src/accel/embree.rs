@@ -51,6 +51,15 @@ impl EmbreeEngine {
         }
     }
 
+    /// An Embree error during a batch means its answers cannot be trusted;
+    /// the query interface has no error path, so it ends the work with
+    /// Embree's message rather than letting wrong hits through.
+    fn check_batch(&self) {
+        if let Err(e) = self.scene.check_queries() {
+            panic!("{e:#}");
+        }
+    }
+
     fn convert(&self, rh: &RTCRayHit) -> Option<Hit> {
         (rh.hit.geomID != INVALID_ID).then(|| {
             let h = &rh.hit;
@@ -163,6 +172,7 @@ impl RayEngine for EmbreeEngine {
                 });
             }
         }
+        self.check_batch();
     }
 
     fn occluded_batch(&self, rays: &[Ray], out: &mut [bool]) {
@@ -185,6 +195,7 @@ impl RayEngine for EmbreeEngine {
                 *o = packet.tfar[k] == f32::NEG_INFINITY;
             }
         }
+        self.check_batch();
     }
 }
 

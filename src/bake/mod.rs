@@ -457,7 +457,7 @@ fn radiosity_stage(
 ) -> Result<(Simplified, TimeSeries, Option<f64>)> {
     let path = dir.join(manifest::RADIOSITY);
     if path.join(radiosity_bake::MANIFEST).exists() {
-        let (simplified, series) = radiosity_bake::load(&path)?;
+        let (simplified, series, _) = radiosity_bake::load_for(&path, scene)?;
         return Ok((simplified, series, None));
     }
     let start = Instant::now();
@@ -467,7 +467,7 @@ fn radiosity_stage(
     );
     engine.set_transforms(&scene.at(scene.animation.start))?;
     let (simplified, series) = radiosity::simplify_and_decompose(scene, engine, quality)?;
-    radiosity_bake::save_with(&path, &scene.source, &simplified, &series)?;
+    radiosity_bake::save(&path, scene, &simplified, &series)?;
     Ok((simplified, series, Some(start.elapsed().as_secs_f64())))
 }
 
@@ -492,7 +492,9 @@ fn render_image(
         max_depth: settings.max_depth,
         seed: image_seed(settings.seed, e.view, e.time),
     };
-    let cache = indirect.map(|(s, series)| IrradianceCache::new(s, &series.indirect_at(e.time)));
+    let cache = indirect
+        .map(|(s, series)| IrradianceCache::new(s, &series.indirect_at(e.time)))
+        .transpose()?;
     let source = match &cache {
         Some(c) => Indirect::Records(c),
         None => Indirect::Traced,

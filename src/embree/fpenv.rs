@@ -8,14 +8,15 @@
 //! the changed mode.
 
 /// Calls the C function at `f` with the four pointer-sized arguments `args`
-/// (System V order), FTZ and DAZ set for the duration of the call only.
+/// (System V order, hence unix only), FTZ and DAZ set for the duration of
+/// the call only.
 /// Functions taking three arguments ignore the fourth.
 ///
 /// # Safety
 /// `f` must be an `extern "C"` function whose parameters are four (or
 /// fewer) pointer-sized integers or pointers, and calling it with `args`
 /// must be sound.
-#[cfg(target_arch = "x86_64")]
+#[cfg(all(target_arch = "x86_64", unix))]
 #[inline(always)]
 pub(super) unsafe fn call_ftz(f: *const (), args: [usize; 4]) {
     /// MXCSR bit 15 (flush to zero) and bit 6 (denormals are zero).
@@ -50,8 +51,10 @@ pub(super) unsafe fn call_ftz(f: *const (), args: [usize; 4]) {
     }
 }
 
-/// Without MXCSR the call is made in the default floating-point mode.
-#[cfg(not(target_arch = "x86_64"))]
+/// Elsewhere (other architectures, or x86_64 with the Windows calling
+/// convention, whose argument registers differ from the ones named above)
+/// the call is made in the default floating-point mode.
+#[cfg(not(all(target_arch = "x86_64", unix)))]
 #[inline(always)]
 pub(super) unsafe fn call_ftz(f: *const (), args: [usize; 4]) {
     // SAFETY: the caller vouches for `f` and its arguments.

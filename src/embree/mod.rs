@@ -10,6 +10,6 @@ mod fpenv;
 mod raw;
 mod scene;
 
-pub use device::Device;
-pub use raw::{RTCHit, RTCRay, RTCRay16, RTCRayHit, RTCRayHit16};
-pub use scene::{ray1, ray_hit, InstancedScene, Valid16, INVALID_ID, PACKET};
+pub(crate) use device::Device;
+pub(crate) use raw::{RTCRay16, RTCRayHit, RTCRayHit16};
+pub(crate) use scene::{ray1, ray_hit, InstancedScene, Valid16, INVALID_ID, PACKET};

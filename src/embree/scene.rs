@@ -3,7 +3,7 @@
 
 use std::ptr::NonNull;
 
-use anyhow::{ensure, Context, Result};
+use anyhow::{bail, ensure, Context, Result};
 use glam::{Affine3A, Vec3};
 
 use super::device::Device;
@@ -162,8 +162,12 @@ impl InstancedScene {
             transforms.len(),
             self.instances.len()
         );
+        // Every transform is checked before any is handed to Embree, so a
+        // refused set leaves the committed scene as it was.
+        if let Some(i) = transforms.iter().position(|x| !x.is_finite()) {
+            bail!("transform {i} is not finite: {:?}", transforms[i]);
+        }
         for (i, (instance, xfm)) in self.instances.iter().zip(transforms).enumerate() {
-            ensure!(xfm.is_finite(), "transform {i} is not finite: {xfm:?}");
             // Affine3A's column-major 3x4 layout is Embree's FLOAT3X4_COLUMN_MAJOR.
             let cols = xfm.to_cols_array();
             // SAFETY: the geometry is a valid instance; `cols` holds the 12
@@ -181,6 +185,13 @@ impl InstancedScene {
                 .check(|| format!("set the transform of instance {i}"))?;
         }
         self.top.commit(&self.device, "the top-level scene")
+    }
+
+    /// Embree's error state after queries on this thread, once per batch:
+    /// the query calls return nothing, so an error there (out of memory, an
+    /// argument Embree refuses) would otherwise go unseen.
+    pub fn check_queries(&self) -> Result<()> {
+        self.device.check(|| "trace rays".to_string())
     }
 
     /// Closest hit of one ray: on return `rayhit.hit.geomID` is
@@ -462,16 +473,62 @@ mod tests {
         assert!(device.check(|| "nothing".into()).is_ok());
     }
 
+    fn unit_triangle() -> MeshGeometry {
+        MeshGeometry {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            triangles: vec![[0, 1, 2]],
+        }
+    }
+
     #[test]
     fn non_finite_transforms_are_refused() {
         let device = Device::new().unwrap();
-        let mesh = MeshGeometry {
-            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
-            triangles: vec![[0, 1, 2]],
-        };
+        let mesh = unit_triangle();
         let mut scene = InstancedScene::new(&device, &[mesh], &[Affine3A::IDENTITY]).unwrap();
         let bad = Affine3A::from_translation(Vec3::new(f32::NAN, 0.0, 0.0));
         let msg = format!("{:#}", scene.set_transforms(&[bad]).unwrap_err());
         assert!(msg.contains("transform 0"), "{msg}");
+    }
+
+    /// A set with one bad transform changes nothing: the instance before it
+    /// is not moved, and the scene stays committed and queryable.
+    #[test]
+    fn a_refused_set_of_transforms_leaves_the_scene_as_it_was() {
+        let device = Device::new().unwrap();
+        let mesh = unit_triangle();
+        let meshes = [mesh.clone(), mesh];
+        let far = Affine3A::from_translation(Vec3::new(0.0, 0.0, 100.0));
+        let mut scene = InstancedScene::new(&device, &meshes, &[Affine3A::IDENTITY, far]).unwrap();
+        let moved = Affine3A::from_translation(Vec3::new(5.0, 0.0, 0.0));
+        let bad = Affine3A::from_translation(Vec3::new(f32::NAN, 0.0, 0.0));
+        let msg = format!("{:#}", scene.set_transforms(&[moved, bad]).unwrap_err());
+        assert!(msg.contains("transform 1"), "{msg}");
+        let trace = |x: f32| {
+            let mut rh = ray_hit(&Ray::new(Vec3::new(x, 0.25, -1.0), Vec3::Z));
+            scene.intersect1(&mut rh);
+            (rh.hit.geomID != INVALID_ID).then_some(rh.hit.instID[0])
+        };
+        assert_eq!(trace(0.25), Some(0), "instance 0 left its place");
+        assert_eq!(trace(5.25), None, "instance 0 moved by a refused set");
+        scene.check_queries().unwrap();
+    }
+
+    /// An Embree error left on this thread is what a batch's check reports.
+    #[test]
+    fn query_checks_report_embree_errors() {
+        let device = Device::new().unwrap();
+        let mesh = unit_triangle();
+        let scene = InstancedScene::new(&device, &[mesh], &[Affine3A::IDENTITY]).unwrap();
+        scene.check_queries().unwrap();
+        let geometry =
+            GeometryHandle::new(&device, raw::RTCGeometryType::RTC_GEOMETRY_TYPE_TRIANGLE).unwrap();
+        // SAFETY: a valid geometry; 1000 time steps exceed Embree's limit.
+        unsafe { raw::rtcSetGeometryTimeStepCount(geometry.0.as_ptr(), 1000) };
+        let msg = format!("{:#}", scene.check_queries().unwrap_err());
+        assert!(
+            msg.contains("trace rays") && msg.contains("invalid argument"),
+            "{msg}"
+        );
+        scene.check_queries().unwrap();
     }
 }

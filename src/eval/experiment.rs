@@ -190,6 +190,7 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
             scene.dropped_triangles
         ));
     }
+    notes.extend(scene.warnings.iter().cloned());
     if scene.is_static() {
         notes.push(
             "static scene: one time sample, no temporal decomposition (one radiosity \
@@ -385,7 +386,7 @@ fn run_quality(
     for (i, &t) in ctx.times.iter().enumerate() {
         let start = Instant::now();
         let indirect = series.indirect_at(t);
-        let cache = IrradianceCache::new(&simplified, &indirect);
+        let cache = IrradianceCache::new(&simplified, &indirect)?;
         let interpolation_s = start.elapsed().as_secs_f64();
         let start = Instant::now();
         engine.set_transforms(&ctx.scene.at(t))?;

@@ -141,6 +141,7 @@ impl CommonArgs {
                 scene.dropped_triangles
             ));
         }
+        notes.extend(scene.warnings.iter().cloned());
         let base_size = match self.base_size {
             Some(0) => bail!("--base-size must be at least 1"),
             Some(n) => n,

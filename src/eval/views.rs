@@ -345,7 +345,7 @@ fn render_direct(
 ) -> Result<DirectRun> {
     let (simplified, series) =
         crate::radiosity::bake::load(&bake.dir.join(crate::bake::manifest::RADIOSITY))?;
-    let cache = IrradianceCache::new(&simplified, &series.indirect_at(shot.time));
+    let cache = IrradianceCache::new(&simplified, &series.indirect_at(shot.time))?;
     engine.set_transforms(&scene.at(shot.time))?;
     let settings = RenderSettings {
         spp,

@@ -28,12 +28,15 @@ use crate::scene::Texture;
 mod color;
 pub mod exr_io;
 #[cfg(feature = "oiio")]
+#[allow(unsafe_code)]
 mod oiio;
+mod output;
 mod planes;
 pub mod png_io;
 pub mod rgbe;
 
 pub use color::tonemap_srgb8;
+pub use output::{check_output, OutputKind};
 
 /// Object/primitive id of a pixel whose ray hit nothing.
 pub const NO_HIT: u32 = u32::MAX;
@@ -92,6 +95,11 @@ impl RangeImage {
     }
 }
 
+/// The most pixels an image may have: a range image holds about 40 bytes
+/// per pixel (radiance, distance, ids, normal) before any layer, so 8192²
+/// is some 2.7 GB, and the machines this runs on have a few tens of GB.
+pub const MAX_PIXELS: u64 = 8192 * 8192;
+
 /// Parses an image size `<W>x<H>` given on a command line.
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let err = || format!("size `{s}` is not <W>x<H> with positive integers, e.g. 512x512");
@@ -102,6 +110,13 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     );
     if w == 0 || h == 0 || w > 32768 || h > 32768 {
         return Err(err());
+    }
+    if u64::from(w) * u64::from(h) > MAX_PIXELS {
+        return Err(format!(
+            "size `{s}` is {} pixels, more than the {MAX_PIXELS} (8192x8192) a range image may hold here \
+             (about 40 bytes each)",
+            u64::from(w) * u64::from(h)
+        ));
     }
     Ok((w, h))
 }

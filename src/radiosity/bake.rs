@@ -15,7 +15,8 @@ use anyhow::{anyhow, bail, ensure, Context, Result};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use crate::scene::hash::fnv1a64;
+use crate::scene::hash::{fnv1a64, ContentHash};
+use crate::scene::Scene;
 
 use super::temporal::{DecomposeStats, IntervalTest, TimeSeries};
 use super::{IndirectSolution, Patch, RecordPoint, Simplified, SimplifyStats, SolveStats};
@@ -23,7 +24,7 @@ use super::{IndirectSolution, Patch, RecordPoint, Simplified, SimplifyStats, Sol
 /// Identifies a bake manifest.
 pub const FORMAT: &str = "rangewalk-bake";
 /// Bumped whenever the layout changes; older or newer bakes are refused.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 pub const MANIFEST: &str = "manifest.toml";
 const PATCHES: &str = "patches.bin";
 const RECORDS: &str = "records.bin";
@@ -41,6 +42,9 @@ struct Manifest {
     scene: PathBuf,
     quality: f32,
     times: Vec<f32>,
+    /// The scene's content when the bake was made: a bake is only used for
+    /// the scene it was solved for.
+    scene_hash: ContentHash,
     simplify: SimplifyEntry,
     decompose: DecomposeEntry,
     solutions: Vec<SolutionEntry>,
@@ -109,21 +113,14 @@ struct FileEntry {
 pub struct BakeInfo {
     pub scene: PathBuf,
     pub quality: f32,
+    pub scene_hash: ContentHash,
 }
 
-/// Writes `simplified` and `series` under `dir`, replacing an earlier bake
-/// there. `scene` is recorded as provenance.
-pub fn save(dir: &Path, simplified: &Simplified, series: &TimeSeries) -> Result<()> {
-    save_with(dir, Path::new(""), simplified, series)
-}
-
-/// [`save`] recording the scene file the bake was made from.
-pub fn save_with(
-    dir: &Path,
-    scene: &Path,
-    simplified: &Simplified,
-    series: &TimeSeries,
-) -> Result<()> {
+/// Writes `simplified` and `series`, solved for `scene`, under `dir`,
+/// replacing an earlier bake there. The scene's file and content hash are
+/// recorded, so that [`load_for`] can refuse the bake for another scene.
+pub fn save(dir: &Path, scene: &Scene, simplified: &Simplified, series: &TimeSeries) -> Result<()> {
+    let scene_hash = ContentHash::of(scene)?;
     let n = simplified.records.len();
     ensure!(
         series.times.len() == series.solutions.len(),
@@ -163,9 +160,10 @@ pub fn save_with(
     let manifest = Manifest {
         format: FORMAT.to_string(),
         version: VERSION,
-        scene: scene.to_path_buf(),
+        scene: scene.source.clone(),
         quality: series.quality,
         times: series.times.clone(),
+        scene_hash,
         simplify: simplify_entry(&simplified.stats),
         decompose: decompose_entry(&series.stats),
         solutions: series.solutions.iter().map(solution_entry).collect(),
@@ -196,6 +194,22 @@ pub fn save_with(
 /// Reads back what [`save`] wrote, identical to what was saved.
 pub fn load(dir: &Path) -> Result<(Simplified, TimeSeries)> {
     load_with_info(dir).map(|(s, t, _)| (s, t))
+}
+
+/// [`load_with_info`] for `scene`: a bake solved for a scene whose text,
+/// meshes or materials differ is an error saying what differs.
+pub fn load_for(dir: &Path, scene: &Scene) -> Result<(Simplified, TimeSeries, BakeInfo)> {
+    let (simplified, series, info) = load_with_info(dir)?;
+    let changes = info.scene_hash.differences(&ContentHash::of(scene)?);
+    ensure!(
+        changes.is_empty(),
+        "{} was baked from {}, which differs from {} in {}: bake again or pass another bake directory",
+        dir.display(),
+        info.scene.display(),
+        scene.source.display(),
+        changes.join(", ")
+    );
+    Ok((simplified, series, info))
 }
 
 /// [`load`] with the bake's provenance.
@@ -332,6 +346,7 @@ pub fn load_with_info(dir: &Path) -> Result<(Simplified, TimeSeries, BakeInfo)> 
     let info = BakeInfo {
         scene: m.scene,
         quality: m.quality,
+        scene_hash: m.scene_hash,
     };
     Ok((simplified, series, info))
 }

@@ -201,9 +201,16 @@ impl Grid {
 }
 
 impl IrradianceCache {
-    /// `indirect[i]` is the irradiance of `simplified.records[i]`.
-    pub fn new(simplified: &Simplified, indirect: &[Vec3]) -> Self {
-        let n = simplified.records.len().min(indirect.len());
+    /// `indirect[i]` is the irradiance of `simplified.records[i]`; values
+    /// for another set of records (another length) are an error, since
+    /// pairing them up by index would light the scene with wrong values.
+    pub fn new(simplified: &Simplified, indirect: &[Vec3]) -> anyhow::Result<Self> {
+        let n = simplified.records.len();
+        anyhow::ensure!(
+            indirect.len() == n,
+            "irradiance cache: {} irradiance values for {n} records",
+            indirect.len()
+        );
         let value = |i: usize| {
             let v = indirect[i];
             if v.is_finite() {
@@ -281,7 +288,7 @@ impl IrradianceCache {
             .iter()
             .map(|s| s.each_ref().map(|m| cache.add_grid(m)))
             .collect();
-        cache
+        Ok(cache)
     }
 
     /// Indirect irradiance at object-space point `p` with unit normal `n` on
@@ -698,7 +705,7 @@ mod tests {
                     }
                 })
                 .collect();
-            let cache = IrradianceCache::new(&s, &values);
+            let cache = IrradianceCache::new(&s, &values).unwrap();
             let (mut in_range, mut fallback) = (0, 0);
             for object in 0..=s.records.iter().map(|r| r.object).max().unwrap() {
                 for front in [true, false] {

@@ -15,6 +15,7 @@ use glam::{Quat, Vec2, Vec3};
 use serde::Deserialize;
 use toml::Spanned;
 
+use super::wavefront::{check_obj, strip_texture_options};
 use super::{
     Animation, Bsdf, CameraDesc, Emission, GlossyModel, Keyframe, Light, Material, Mesh, Motion,
     Object, PathKey, Scene, Texture, ViewSpace, WalkPath,
@@ -235,6 +236,7 @@ pub fn load(path: PathBuf) -> Result<Scene> {
 
     let mut objects = Vec::new();
     let mut dropped_triangles = 0;
+    let mut warnings = Vec::new();
     // Objects often share one OBJ file (one group each): read it once.
     let mut obj_files: HashMap<PathBuf, ObjFile> = HashMap::new();
     for o in &parsed.objects {
@@ -248,14 +250,21 @@ pub fn load(path: PathBuf) -> Result<Scene> {
         )?;
         let mesh_path = dir.join(&o.mesh);
         if !obj_files.contains_key(&mesh_path) {
-            obj_files.insert(mesh_path.clone(), ObjFile::read(&mesh_path)?);
+            obj_files.insert(mesh_path.clone(), ObjFile::read(&mesh_path, &mut warnings)?);
         }
         let obj = &obj_files[&mesh_path];
         let (mesh, mtl_name, dropped) = obj
             .mesh(o.group.as_deref())
             .with_context(|| format!("{at}: object `{}`", o.name))?;
         dropped_triangles += dropped;
-        let material = resolve_material(&at, o, mtl_name.as_deref(), obj, &mut materials, &dir)?;
+        let material = resolve_material(
+            &at,
+            o,
+            mtl_name.as_deref(),
+            obj,
+            &mut materials,
+            &mut warnings,
+        )?;
         let motion = build_motion(&src, &at, o)?;
         objects.push(Object {
             name: o.name.clone(),
@@ -345,6 +354,7 @@ pub fn load(path: PathBuf) -> Result<Scene> {
         view_space,
         paths,
         dropped_triangles,
+        warnings,
     })
 }
 
@@ -405,14 +415,25 @@ fn build_material(at: &str, m: &MaterialToml, dir: &Path) -> Result<Material> {
             two_sided_emission,
         } => {
             let what = format!("{at}: material `{name}`");
+            let reflectance = reflectance(&what, "reflectance", *r)?;
             let texture = texture
                 .as_ref()
                 .map(|t| read_texture(&what, &dir.join(t)))
                 .transpose()?;
+            if let Some(t) = &texture {
+                let product = reflectance * t.largest_texel();
+                ensure!(
+                    product.max_element() < 1.0,
+                    "{what}: `reflectance` {:?} times the largest texel of {} is {:?}, which has a channel >= 1; a reflectance must stay below 1",
+                    reflectance.to_array(),
+                    t.source.display(),
+                    product.to_array()
+                );
+            }
             Material {
                 name: name.clone(),
                 bsdf: Bsdf::Diffuse {
-                    reflectance: reflectance(&what, "reflectance", *r)?,
+                    reflectance,
                     texture,
                 },
                 emission: emission(&what, *e, *two_sided_emission)?,
@@ -474,17 +495,31 @@ fn build_material(at: &str, m: &MaterialToml, dir: &Path) -> Result<Material> {
     })
 }
 
+/// A texture multiplies a reflectance, so its texels only need to be
+/// finite and not negative here; the product is checked where the
+/// reflectance is known.
 fn read_texture(what: &str, path: &Path) -> Result<Arc<Texture>> {
     let tex = crate::image::read_texture(path).with_context(|| format!("{what}: texture"))?;
     ensure!(
         tex.texels
             .iter()
-            .all(|t| t.is_finite() && t.min_element() >= 0.0 && t.max_element() < 1.0),
-        "{what}: texture {} has texels outside [0, 1); a reflectance must stay below 1",
+            .all(|t| t.is_finite() && t.min_element() >= 0.0),
+        "{what}: texture {} has texels that are negative or not finite",
         path.display()
     );
     Ok(Arc::new(tex))
 }
+
+/// The reflectance an MTL channel of 1 or more (`Kd 1 1 1`, common in
+/// files from other tools) is lowered to: the highest albedo the radiosity
+/// solver is tested to converge at in a closed scene (the ρ = 0.99
+/// furnace), since a reflectance of 1 would never let light go.
+const MTL_REFLECTANCE_LIMIT: f32 = 0.99;
+
+/// The object material for an OBJ that names none (files from tools that
+/// write no MTL): a mid grey.
+const DEFAULT_MATERIAL: &str = "(default diffuse)";
+const DEFAULT_REFLECTANCE: f32 = 0.5;
 
 /// Picks the object's material: the named `[[materials]]` entry, else one
 /// made from the OBJ's MTL material (Kd, map_Kd, Ke) on first use.
@@ -494,7 +529,7 @@ fn resolve_material(
     mtl_name: Option<&str>,
     obj: &ObjFile,
     materials: &mut Vec<Material>,
-    dir: &Path,
+    warnings: &mut Vec<String>,
 ) -> Result<usize> {
     let known = |materials: &[Material]| {
         materials
@@ -516,10 +551,22 @@ fn resolve_material(
             });
     }
     let Some(mtl_name) = mtl_name else {
-        bail!(
-            "{at}: object `{}` has no `material` and its mesh names no MTL material",
+        warnings.push(format!(
+            "{at}: object `{}` has no `material` and its mesh names no MTL material (or its MTL file is missing): using a diffuse grey of reflectance {DEFAULT_REFLECTANCE}",
             o.name
-        );
+        ));
+        if let Some(i) = materials.iter().position(|m| m.name == DEFAULT_MATERIAL) {
+            return Ok(i);
+        }
+        materials.push(Material {
+            name: DEFAULT_MATERIAL.to_string(),
+            bsdf: Bsdf::Diffuse {
+                reflectance: Vec3::splat(DEFAULT_REFLECTANCE),
+                texture: None,
+            },
+            emission: None,
+        });
+        return Ok(materials.len() - 1);
     };
     if let Some(i) = materials.iter().position(|m| m.name == mtl_name) {
         return Ok(i);
@@ -536,11 +583,39 @@ fn resolve_material(
         })?;
     let what = format!("{}: MTL material `{mtl_name}`", obj.path.display());
     let texture = match &mtl.diffuse_texture {
-        Some(t) => Some(read_texture(
-            &what,
-            &obj.path.parent().unwrap_or(dir).join(t),
-        )?),
+        Some(t) => {
+            let path = obj.path.parent().unwrap_or(Path::new(".")).join(t);
+            if path.is_file() {
+                Some(read_texture(&what, &path)?)
+            } else {
+                warnings.push(format!(
+                    "{what}: texture {} does not exist: using `Kd` alone",
+                    path.display()
+                ));
+                None
+            }
+        }
         None => None,
+    };
+    // A texture without `Kd` stands alone (reflectance 1 times the texel).
+    let kd = match (mtl.diffuse, &texture) {
+        (Some(kd), _) => kd,
+        (None, Some(_)) => [1.0; 3],
+        (None, None) => [0.0; 3],
+    };
+    finite(&what, "Kd", &kd)?;
+    let largest = texture.as_ref().map_or(Vec3::ONE, |t| t.largest_texel());
+    let product = Vec3::from(kd) * largest;
+    let kd = if product.max_element() >= 1.0 {
+        warnings.push(format!(
+            "{what}: `Kd` {kd:?}{} has a channel >= 1; lowered to {MTL_REFLECTANCE_LIMIT} so that the surface does not reflect all the light it receives",
+            if texture.is_some() { " times the texture's largest texel" } else { "" },
+        ));
+        let limit =
+            Vec3::splat(MTL_REFLECTANCE_LIMIT) / largest.max(Vec3::splat(f32::MIN_POSITIVE));
+        Vec3::from(kd).min(limit).to_array()
+    } else {
+        kd
     };
     let ke = mtl
         .unknown_param
@@ -551,7 +626,7 @@ fn resolve_material(
     materials.push(Material {
         name: mtl_name.to_string(),
         bsdf: Bsdf::Diffuse {
-            reflectance: reflectance(&what, "Kd", mtl.diffuse.unwrap_or([0.0; 3]))?,
+            reflectance: reflectance(&what, "Kd", kd)?,
             texture,
         },
         emission: emission(&what, ke, false)?,
@@ -754,22 +829,50 @@ struct ObjFile {
 }
 
 impl ObjFile {
-    fn read(path: &Path) -> Result<Self> {
+    /// A missing MTL file is a warning (the objects fall back to the
+    /// default material); one that does not parse is an error naming it.
+    fn read(path: &Path, warnings: &mut Vec<String>) -> Result<Self> {
         ensure!(
             path.is_file(),
             "mesh file {} does not exist",
             path.display()
         );
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read mesh {}", path.display()))?;
+        check_obj(path, &text)?;
         let opts = tobj::LoadOptions {
             single_index: true,
             triangulate: true,
             ignore_points: true,
             ignore_lines: true,
         };
-        let (models, materials) = tobj::load_obj(path, &opts)
-            .map_err(|e| anyhow!("cannot read mesh {}: {e}", path.display()))?;
-        let materials = materials
-            .map_err(|e| anyhow!("cannot read the MTL file of {}: {e}", path.display()))?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let mtl_warnings = std::cell::RefCell::new(Vec::new());
+        let mtl_error = std::cell::RefCell::new(None);
+        let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &opts, |name| {
+            let mtl = dir.join(name);
+            let Ok(text) = std::fs::read_to_string(&mtl) else {
+                mtl_warnings.borrow_mut().push(format!(
+                    "{}: MTL file {} cannot be read: its materials fall back to the default",
+                    path.display(),
+                    mtl.display()
+                ));
+                return Ok(Default::default());
+            };
+            let (text, w) = strip_texture_options(&mtl, &text);
+            mtl_warnings.borrow_mut().extend(w);
+            tobj::load_mtl_buf(&mut text.as_bytes()).inspect_err(|e| {
+                *mtl_error.borrow_mut() =
+                    Some(anyhow!("cannot read MTL file {}: {e}", mtl.display()));
+            })
+        })
+        .map_err(|e| anyhow!("cannot read mesh {}: {e}", path.display()))?;
+        if let Some(e) = mtl_error.into_inner() {
+            return Err(e);
+        }
+        warnings.extend(mtl_warnings.into_inner());
+        // An MTL failure was reported above; none are left here.
+        let materials = materials.unwrap_or_default();
         Ok(Self {
             path: path.to_path_buf(),
             models,
@@ -982,6 +1085,38 @@ vfov = 40
             Scene::load(dir.path().join("none.toml")).unwrap_err()
         );
         assert!(err.contains("none.toml"), "{err}");
+    }
+
+    /// A white texel (an 8-bit 255) under a reflectance below 1 loads; a
+    /// product of 1 is refused, naming the texture.
+    #[test]
+    fn texture_is_checked_as_a_product_with_the_reflectance() {
+        let png = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/wavefront/checker.png");
+        let textured = GOOD.replace(
+            "reflectance = [0.5, 0.5, 0.5]",
+            "reflectance = [0.8, 0.8, 0.8]\ntexture = \"t.png\"",
+        );
+        let (d, path) = scene_dir(&textured);
+        std::fs::copy(png, d.path().join("t.png")).unwrap();
+        let s = Scene::load(&path).unwrap_or_else(|e| panic!("{e:#}"));
+        assert!(matches!(
+            &s.materials[0].bsdf,
+            Bsdf::Diffuse {
+                texture: Some(_),
+                ..
+            }
+        ));
+        // A high-dynamic-range texel of 2 under 0.8 is a reflectance of 1.6.
+        exr::prelude::write_rgb_file(d.path().join("t.exr"), 2, 1, |_, _| {
+            (2.0f32, 0.1f32, 0.1f32)
+        })
+        .unwrap();
+        std::fs::write(&path, textured.replace("t.png", "t.exr")).unwrap();
+        let msg = format!("{:#}", Scene::load(&path).unwrap_err());
+        assert!(
+            msg.contains("t.exr") && msg.contains("largest texel"),
+            "{msg}"
+        );
     }
 
     #[test]

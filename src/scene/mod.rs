@@ -17,6 +17,7 @@ use crate::camera::{Camera, Projection};
 pub mod hash;
 mod load;
 mod motion;
+mod wavefront;
 
 pub use motion::{Keyframe, Motion};
 
@@ -36,6 +37,10 @@ pub struct Scene {
     pub paths: Vec<WalkPath>,
     /// Zero-area triangles dropped while loading.
     pub dropped_triangles: usize,
+    /// What loading replaced or ignored in files from other tools (a missing
+    /// MTL file or texture, `Kd 1 1 1` lowered, texture options ignored),
+    /// each naming the file, for the user to see.
+    pub warnings: Vec<String>,
 }
 
 /// One rigidly moving mesh with one material.
@@ -128,6 +133,12 @@ pub struct Texture {
 }
 
 impl Texture {
+    /// The largest value of each channel: what bounds the reflectance the
+    /// texture multiplies.
+    pub fn largest_texel(&self) -> Vec3 {
+        self.texels.iter().fold(Vec3::ZERO, |m, &t| m.max(t))
+    }
+
     /// Bilinear lookup; `v = 0` is the bottom row, as in OBJ files.
     pub fn sample(&self, uv: Vec2) -> Vec3 {
         let (w, h) = (self.width as usize, self.height as usize);

@@ -18,3 +18,4 @@ pub mod radiosity;
 pub mod render;
 pub mod scene;
 pub mod synth;
+pub mod viewer;

@@ -79,7 +79,7 @@ mod tests {
         assert!(status.iter().all(|&p| p == BACKGROUND || p == INK));
         assert!(status.contains(&INK), "text is drawn");
         // `|` is a vertical bar: ink in the second line's glyph column.
-        let y = top + 2 + LINE + 3;
+        let y = top + 2 + LINE + 1;
         assert!(px[y * w + 4..y * w + 12].contains(&INK));
     }
 

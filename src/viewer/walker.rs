@@ -177,7 +177,7 @@ impl Walker {
             held: BTreeSet::new(),
         };
         w.position = w.clamp(start.position);
-        w.direction = w.limit_pitch(w.direction);
+        w.direction = w.turn(w.direction, 0.0, 0.0);
         Ok(w)
     }
 
@@ -228,11 +228,7 @@ impl Walker {
         let yaw = -axis(Key::Right, Key::Left) * TURN_RATE * boost * dt - input.drag.0 * DRAG_RATE;
         let pitch = axis(Key::Up, Key::Down) * TURN_RATE * boost * dt - input.drag.1 * DRAG_RATE;
         if yaw != 0.0 || pitch != 0.0 {
-            let right = self.direction.cross(self.up).normalize();
-            let turned = Quat::from_axis_angle(self.up, yaw)
-                * Quat::from_axis_angle(right, pitch)
-                * self.direction;
-            self.direction = self.limit_pitch(turned.normalize());
+            self.direction = self.turn(self.direction, yaw, pitch);
         }
         // Moving: forward along the ground, not into it.
         let ahead = (self.direction - self.up * self.direction.dot(self.up)).normalize_or_zero();
@@ -282,22 +278,21 @@ impl Walker {
         }
     }
 
-    /// `d` turned towards the horizon where it comes within
-    /// [`PITCH_MARGIN`] of straight up or down.
-    fn limit_pitch(&self, d: Vec3) -> Vec3 {
-        let limit = (std::f32::consts::FRAC_PI_2 - PITCH_MARGIN).sin();
-        let h = d.dot(self.up);
-        if h.abs() <= limit {
-            return d;
-        }
+    /// `d` turned by `yaw` about the world's up and raised by `pitch`, its
+    /// elevation kept [`PITCH_MARGIN`] short of straight up or down, where
+    /// turning about the up would spin the view.
+    fn turn(&self, d: Vec3, yaw: f32, pitch: f32) -> Vec3 {
+        let max = std::f32::consts::FRAC_PI_2 - PITCH_MARGIN;
+        let h = d.dot(self.up).clamp(-1.0, 1.0);
+        let elevation = (h.asin() + pitch).clamp(-max, max);
         let flat = (d - self.up * h).normalize_or_zero();
         let flat = if flat == Vec3::ZERO {
             self.up.any_orthonormal_vector()
         } else {
             flat
         };
-        let c = (1.0 - limit * limit).sqrt();
-        (flat * c + self.up * limit.copysign(h)).normalize()
+        let flat = Quat::from_axis_angle(self.up, yaw) * flat;
+        (flat * elevation.cos() + self.up * elevation.sin()).normalize()
     }
 }
 
@@ -393,9 +388,16 @@ mod tests {
         let mut w = walker(None);
         w.step(&hold(&[Key::Left]), std::f32::consts::FRAC_PI_2 / TURN_RATE);
         assert!((w.direction - Vec3::X).length() < 1e-5, "{}", w.direction);
-        w.step(&hold(&[Key::Up]), 10.0);
-        assert!(w.direction.dot(Vec3::Y) < 1.0 - 1e-3);
-        assert!(w.direction.dot(Vec3::Y) > 0.99);
+        for _ in 0..100 {
+            w.step(&hold(&[Key::Up]), 0.1);
+        }
+        let top = (std::f32::consts::FRAC_PI_2 - PITCH_MARGIN).sin();
+        assert!((w.direction.dot(Vec3::Y) - top).abs() < 1e-5);
+        w.step(&hold(&[Key::Down]), 100.0);
+        assert!(
+            (w.direction.dot(Vec3::Y) + top).abs() < 1e-5,
+            "one long step stops too"
+        );
         assert!(w.camera(8, 8).is_ok());
     }
 

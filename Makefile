@@ -8,7 +8,7 @@ CARGO ?= cargo
 VENV := .venv
 PYTHON := $(VENV)/bin/python
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-DEB_PACKAGES := libembree-dev libopenimageio-dev libclang-dev pkg-config g++ python3 python3-venv fonts-dejavu-core slurm-wlm munge
+DEB_PACKAGES := libembree-dev libopenimageio-dev libclang-dev pkg-config g++ python3 python3-venv fonts-dejavu-core slurm-wlm munge xvfb xauth libx11-6 libxcursor1
 PY_PACKAGES := mitsuba==3.9.1 flip-evaluator==1.7 numpy
 DEMO_SCENE := scenes/cornell-box/scene.toml
 DEMO_SIZE := 256x256
@@ -34,6 +34,7 @@ demo: deps build
 	} 2>&1 | tee out/demo.partial/summary.txt
 	@mv out/demo.partial out/demo
 	@echo "demo written to out/demo/: bake/ (base images), walk/ (frames, walk.png animation, contact.png: synthesized above path-traced, summary.json), synth-main-t0.5.png, summary.txt (time of every phase, error)"
+	@echo "walk through it in a window: $(RW) view out/demo/bake --size $(DEMO_SIZE) (keys: docs/viewer.md; without a display: xvfb-run $(RW) view out/demo/bake --path walk --screenshot out/demo/view.png)"
 
 test: deps build lint
 	$(CARGO) test --release

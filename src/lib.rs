@@ -26,3 +26,4 @@ pub mod radiosity;
 pub mod render;
 pub mod scene;
 pub mod synth;
+pub mod viewer;

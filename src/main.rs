@@ -108,6 +108,9 @@ enum Command {
     /// Synthesize every frame of a walk path from a bake: range images,
     /// previews, an animated preview and a summary.
     Walk(rangewalk::synth::command::WalkArgs),
+    /// Walk through a bake in a window, in real time: keys and mouse move
+    /// and turn, time plays; or play a path or an input script.
+    View(rangewalk::viewer::command::ViewArgs),
     /// Error of range images against a reference range image: LRMS and
     /// bias of luminance (the paper's measure).
     Compare {
@@ -371,6 +374,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Synth(args) => rangewalk::synth::command::synth(&args)?,
         Command::Walk(args) => rangewalk::synth::command::walk(&args)?,
+        Command::View(args) => rangewalk::viewer::command::view(&args)?,
     }
     Ok(())
 }

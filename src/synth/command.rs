@@ -102,6 +102,10 @@ pub struct SynthArgs {
     /// Named camera of the scene.
     #[arg(long, default_value = "main")]
     pub camera: String,
+    /// The camera of this walk path at --time instead of a named camera
+    /// (the frame `rangewalk walk` and `rangewalk view --path` show then).
+    #[arg(long, conflicts_with = "camera")]
+    pub path: Option<String>,
     /// Scene time in seconds.
     #[arg(long)]
     pub time: f32,
@@ -120,7 +124,10 @@ pub struct SynthArgs {
 pub fn synth(args: &SynthArgs) -> Result<()> {
     let options = args.synth.options()?;
     let (scene, bake) = args.synth.open(&args.bake)?;
-    let desc = scene.camera(&args.camera)?;
+    let desc = match &args.path {
+        Some(p) => scene.path(p)?.at(args.time),
+        None => scene.camera(&args.camera)?.clone(),
+    };
     if let Some(w) = view_space_warning(&scene, &format!("camera `{}`", desc.name), desc.position) {
         eprintln!("{w}");
     }

@@ -217,7 +217,7 @@ pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Res
 }
 
 /// A fresh `<out>.partial` beside `out`.
-fn staging_dir(out: &Path) -> Result<PathBuf> {
+pub fn staging_dir(out: &Path) -> Result<PathBuf> {
     let name = out
         .file_name()
         .with_context(|| format!("{}: names no folder", out.display()))?;

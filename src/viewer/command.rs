@@ -1,0 +1,507 @@
+//! `rangewalk view`: the window's loop. Interactive, each pass reads the
+//! keys, moves the viewer by the time that passed and asks for a new frame
+//! when the last one is shown; scripted (`--path`, `--input` or
+//! `--frames`), every frame is the one for its step, one scene frame
+//! (1/fps) after the last, so a run can be replayed and compared.
+
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, ensure, Context, Result};
+
+use super::overlay;
+use super::render::{Rendered, Renderer, Request};
+use super::script::Script;
+use super::walker::{Input, Walker};
+use super::window::{self, Window};
+use crate::image::{self, png_io};
+use crate::scene::{CameraDesc, Scene, WalkPath};
+use crate::synth::command::SynthOptions;
+use crate::synth::walk::{frame_times, staging_dir};
+use crate::synth::Options;
+
+#[derive(clap::Args, Clone, Debug)]
+pub struct ViewArgs {
+    /// A complete bake directory (`rangewalk bake`).
+    pub bake: PathBuf,
+    /// Window size at the start, `<W>x<H>`; frames follow the window's size.
+    #[arg(long, default_value = "512x512", value_parser = image::parse_size)]
+    pub size: (u32, u32),
+    /// Named camera of the scene to start at [default: the scene's first].
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Scene time to start at [default: the animation's start].
+    #[arg(long)]
+    pub time: Option<f32>,
+    /// Play this walk path of the scene, looping: the viewer takes its
+    /// pose and time at every frame.
+    #[arg(long, conflicts_with = "input")]
+    pub path: Option<String>,
+    /// Scripted input, one step a line: `<frames> [key ...] [drag <dx>,<dy>]`
+    /// (keys: w a s d q e left right up down space comma period home f t shift).
+    #[arg(long)]
+    pub input: Option<PathBuf>,
+    /// Stop after this many frames [scripted default: the script's length,
+    /// or one loop of the path].
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Save the last frame shown (status lines included) as PNG.
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+    /// Save every frame shown as `frame-NNNN.png` in this folder.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// Moving speed in scene units per second [default: a quarter of the
+    /// view space's longest side per second].
+    #[arg(long)]
+    pub speed: Option<f32>,
+    /// Scene frames per second of a scripted run [default: the scene's].
+    #[arg(long)]
+    pub fps: Option<f32>,
+    #[command(flatten)]
+    pub synth: SynthOptions,
+}
+
+/// What a run showed.
+#[derive(Clone, Debug)]
+pub struct ViewSummary {
+    pub frames: usize,
+    /// Frames per second of synthesis, reading bases excluded.
+    pub synthesis_fps: f64,
+    /// Frames per second shown, from the first frame shown to the last,
+    /// reading bases excluded.
+    pub shown_fps: f64,
+    pub load_seconds: f64,
+    pub last: Option<Rendered>,
+    /// Whether the last frame's step was stopped at the view space's edge.
+    pub at_edge: bool,
+}
+
+/// Frames shown in the last second.
+#[derive(Default)]
+struct Meter(VecDeque<Instant>);
+
+impl Meter {
+    fn tick(&mut self, now: Instant) -> f64 {
+        self.0.push_back(now);
+        while self
+            .0
+            .front()
+            .is_some_and(|&t| now - t > Duration::from_secs(1))
+        {
+            self.0.pop_front();
+        }
+        let span = (now - self.0[0]).as_secs_f64();
+        if self.0.len() < 2 || span == 0.0 {
+            0.0
+        } else {
+            (self.0.len() - 1) as f64 / span
+        }
+    }
+}
+
+/// Where the walk-through goes: a path, a script, or the keyboard.
+enum Drive {
+    Path { path: WalkPath, times: Vec<f32> },
+    Script(Script),
+    Keys,
+}
+
+pub fn view(args: &ViewArgs) -> Result<()> {
+    let s = run(args)?;
+    let last = s.last.as_ref();
+    println!(
+        "{} frame(s) at {}: {:.1} frames/s synthesis, {:.1} frames/s shown, {:.3} s reading bases{}",
+        s.frames,
+        last.map_or("no size".into(), |r| format!(
+            "{}x{} from {} base image(s) of view(s) {}",
+            r.request.camera.width,
+            r.request.camera.height,
+            r.stats.images.len(),
+            list(&r.views)
+        )),
+        s.synthesis_fps,
+        s.shown_fps,
+        s.load_seconds,
+        args.screenshot
+            .as_ref()
+            .map_or(String::new(), |p| format!("; screenshot {}", p.display()))
+    );
+    if let Some(r) = last {
+        let c = &r.request.camera;
+        println!(
+            "last frame: position {}, direction {}, t = {} s{}",
+            c.position,
+            c.forward,
+            r.request.time,
+            if s.at_edge {
+                ", stopped at the view space's edge"
+            } else {
+                ""
+            }
+        );
+    }
+    Ok(())
+}
+
+/// Opens the window and runs until the frames are done or it is closed.
+pub fn run(args: &ViewArgs) -> Result<ViewSummary> {
+    let options = args.synth.options()?;
+    let (scene, bake) = args.synth.open(&args.bake)?;
+    let scene = Arc::new(scene);
+    let fps = args.fps.unwrap_or(scene.animation.fps);
+    ensure!(
+        fps.is_finite() && fps > 0.0,
+        "--fps {fps} must be a positive number"
+    );
+    let drive = match (&args.path, &args.input) {
+        (Some(name), _) => {
+            let path = scene.path(name)?.clone();
+            let times = frame_times(path.span(), fps);
+            Drive::Path { path, times }
+        }
+        (None, Some(file)) => Drive::Script(Script::read(file)?),
+        (None, None) => Drive::Keys,
+    };
+    let scripted = !matches!(drive, Drive::Keys) || args.frames.is_some();
+    let total = match (&drive, args.frames) {
+        (_, Some(0)) => bail!("--frames 0: give at least 1 frame"),
+        (_, Some(n)) => Some(n),
+        (Drive::Path { times, .. }, None) => Some(times.len()),
+        (Drive::Script(s), None) if s.frames.is_empty() => bail!(
+            "input script {} holds no steps",
+            args.input.as_ref().expect("a script").display()
+        ),
+        (Drive::Script(s), None) => Some(s.frames.len()),
+        (Drive::Keys, None) => None,
+    };
+    let start = start_pose(&scene, args.camera.as_deref())?;
+    let speed = match args.speed {
+        Some(v) => v,
+        None => default_speed(&scene),
+    };
+    let walker = Walker::new(
+        &start,
+        args.time.unwrap_or(scene.animation.start),
+        scene.view_space,
+        scene.animation,
+        speed,
+        options.fill,
+        options.time_interp,
+    )?;
+    let record = args.record.as_deref().map(staging_dir).transpose()?;
+    let title = format!("rangewalk view {}: {}", args.bake.display(), window::KEYS);
+    let window = Window::open(&title, args.size.0, args.size.1)?;
+    let renderer = Renderer::start(
+        Arc::clone(&scene),
+        bake,
+        args.synth.base_memory << 20,
+        args.synth.exposure,
+    )?;
+    let mut screen = Screen::new(window, args.size, record);
+    let mut session = Session {
+        renderer,
+        walker,
+        options,
+    };
+    match total.filter(|_| scripted) {
+        Some(n) => session.scripted(&mut screen, &drive, n, fps)?,
+        None => session.interactive(&mut screen)?,
+    }
+    if let (Some(p), Some(_)) = (&args.screenshot, &screen.shown) {
+        png_io::write(
+            p,
+            screen.size.0,
+            screen.size.1,
+            &overlay::unpack(&screen.on_screen),
+        )?;
+    }
+    if let (Some(dir), Some(staged)) = (&args.record, &screen.record) {
+        finish_record(staged, dir)?;
+    }
+    let shown_fps = match screen.first_shown {
+        Some(first) if screen.count > 1 => {
+            let reading = screen.load_seconds - screen.first_load_seconds;
+            let span = (screen.last_shown - first).as_secs_f64() - reading;
+            (screen.count - 1) as f64 / span.max(1e-9)
+        }
+        _ => 0.0,
+    };
+    Ok(ViewSummary {
+        frames: screen.count,
+        synthesis_fps: screen.count as f64 / screen.synthesis_seconds.max(1e-9),
+        shown_fps,
+        load_seconds: screen.load_seconds,
+        at_edge: screen.shown.as_ref().is_some_and(|(_, f)| f.at_edge),
+        last: screen.shown.map(|(r, _)| r),
+    })
+}
+
+/// The viewer's state when a frame was asked for, which its status shows.
+#[derive(Clone, Copy, Debug, Default)]
+struct Flags {
+    at_edge: bool,
+    playing: bool,
+}
+
+/// The window and what it shows: the last frame, its status, the counts.
+struct Screen {
+    window: Window,
+    size: (u32, u32),
+    /// The last frame, packed, without status.
+    pixels: Vec<u32>,
+    /// What the window shows: `pixels` with the status drawn over.
+    on_screen: Vec<u32>,
+    shown: Option<(Rendered, Flags)>,
+    record: Option<PathBuf>,
+    meter: Meter,
+    frames_per_second: f64,
+    count: usize,
+    synthesis_seconds: f64,
+    load_seconds: f64,
+    first_shown: Option<Instant>,
+    /// Seconds the first frame spent reading bases.
+    first_load_seconds: f64,
+    last_shown: Instant,
+}
+
+impl Screen {
+    fn new(window: Window, (w, h): (u32, u32), record: Option<PathBuf>) -> Screen {
+        Screen {
+            window,
+            size: (w, h),
+            pixels: vec![0; (w * h) as usize],
+            on_screen: Vec::new(),
+            shown: None,
+            record,
+            meter: Meter::default(),
+            frames_per_second: 0.0,
+            count: 0,
+            synthesis_seconds: 0.0,
+            load_seconds: 0.0,
+            first_shown: None,
+            first_load_seconds: 0.0,
+            last_shown: Instant::now(),
+        }
+    }
+
+    /// Takes a new frame: counted, shown and recorded.
+    fn take(&mut self, r: Rendered, flags: Flags) -> Result<()> {
+        let now = Instant::now();
+        self.count += 1;
+        self.synthesis_seconds += r.stats.seconds - r.stats.load_seconds;
+        self.load_seconds += r.stats.load_seconds;
+        self.frames_per_second = self.meter.tick(now);
+        if self.first_shown.is_none() {
+            self.first_shown = Some(now);
+            self.first_load_seconds = r.stats.load_seconds;
+        }
+        self.last_shown = now;
+        self.size = (r.request.camera.width, r.request.camera.height);
+        self.pixels = overlay::pack(&r.rgb);
+        self.shown = Some((r, flags));
+        self.redraw()?;
+        if let Some(dir) = &self.record {
+            let file = dir.join(format!("frame-{:04}.png", self.count - 1));
+            png_io::write(
+                file,
+                self.size.0,
+                self.size.1,
+                &overlay::unpack(&self.on_screen),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Shows the last frame again with its status (or the status alone).
+    fn redraw(&mut self) -> Result<()> {
+        let (w, h) = self.size;
+        self.on_screen.clone_from(&self.pixels);
+        let lines = match &self.shown {
+            Some((r, flags)) => status(r, *flags, self.frames_per_second),
+            None => vec!["reading the bases...".into(), String::new()],
+        };
+        overlay::draw(&mut self.on_screen, w as usize, h as usize, &lines);
+        self.window.show(&self.on_screen, w, h)
+    }
+}
+
+/// The viewer and the thread making its frames.
+struct Session {
+    renderer: Renderer,
+    walker: Walker,
+    options: Options,
+}
+
+impl Session {
+    /// Asks for the walker's frame at `size`; the flags it was asked with.
+    fn ask(&mut self, size: (u32, u32)) -> Result<Flags> {
+        let request = request(&self.walker, size, self.options)?;
+        self.renderer.request(request)?;
+        Ok(self.flags())
+    }
+
+    fn flags(&self) -> Flags {
+        Flags {
+            at_edge: self.walker.at_edge,
+            playing: self.walker.playing,
+        }
+    }
+
+    /// Moves the walker to step `i` of a scripted run.
+    fn advance(&mut self, drive: &Drive, i: usize, fps: f32) {
+        match drive {
+            Drive::Path { path, times } => {
+                let t = times[i % times.len()];
+                self.walker.follow(&path.at(t), t);
+            }
+            Drive::Script(s) => {
+                let input = s.frames.get(i).cloned().unwrap_or_default();
+                self.walker.step(&input, 1.0 / fps);
+            }
+            Drive::Keys => self.walker.step(&Input::default(), 1.0 / fps),
+        }
+    }
+
+    /// `n` frames, each of its step; the next is made while one is shown.
+    fn scripted(&mut self, screen: &mut Screen, drive: &Drive, n: usize, fps: f32) -> Result<()> {
+        self.advance(drive, 0, fps);
+        let mut flags = self.ask(screen.window.size())?;
+        for i in 0..n {
+            let made = loop {
+                if let Some(r) = self.renderer.poll(Duration::from_millis(30))? {
+                    break r;
+                }
+                screen.window.pump();
+                if !screen.window.is_open() {
+                    bail!("the window was closed after {i} of {n} frames");
+                }
+            };
+            let shown_flags = flags;
+            if i + 1 < n {
+                self.advance(drive, i + 1, fps);
+                flags = self.ask(screen.window.size())?;
+            }
+            screen.take(made, shown_flags)?;
+        }
+        Ok(())
+    }
+
+    /// Until the window closes: keys move the walker by the time that
+    /// passed; a new frame is asked for when the last is in and the view
+    /// changed.
+    fn interactive(&mut self, screen: &mut Screen) -> Result<()> {
+        let mut last_step = Instant::now();
+        let mut flags = self.flags();
+        while screen.window.is_open() {
+            let now = Instant::now();
+            let input = screen.window.input();
+            self.walker.step(&input, (now - last_step).as_secs_f32());
+            last_step = now;
+            if !self.renderer.busy() {
+                let wanted = request(&self.walker, screen.window.size(), self.options)?;
+                if screen
+                    .shown
+                    .as_ref()
+                    .is_none_or(|(s, _)| s.request != wanted)
+                {
+                    self.renderer.request(wanted)?;
+                    flags = self.flags();
+                }
+            }
+            match self.renderer.poll(Duration::ZERO)? {
+                Some(r) => screen.take(r, flags)?,
+                None => screen.redraw()?,
+            }
+        }
+        Ok(())
+    }
+}
+
+fn request(walker: &Walker, (w, h): (u32, u32), base: Options) -> Result<Request> {
+    Ok(Request {
+        camera: walker.camera(w, h)?,
+        time: walker.time,
+        options: Options {
+            fill: walker.fill,
+            time_interp: walker.time_interp,
+            ..base
+        },
+    })
+}
+
+/// The two status lines of a frame shown.
+fn status(r: &Rendered, flags: Flags, frames_per_second: f64) -> Vec<String> {
+    let p = r.request.camera.position;
+    let o = &r.request.options;
+    vec![
+        format!(
+            "x {:.1} y {:.1} z {:.1}{}  t {:.3} s {}  {:.1} frames/s",
+            p.x,
+            p.y,
+            p.z,
+            if flags.at_edge { " (edge)" } else { "" },
+            r.request.time,
+            if flags.playing { "playing" } else { "paused" },
+            frames_per_second
+        ),
+        format!(
+            "bases {} ({} images)  fill {}  time {}  {:.0} ms",
+            list(&r.views),
+            r.stats.images.len(),
+            format!("{:?}", o.fill).to_lowercase(),
+            format!("{:?}", o.time_interp).to_lowercase(),
+            1e3 * (r.stats.seconds - r.stats.load_seconds)
+        ),
+    ]
+}
+
+fn list(v: &[usize]) -> String {
+    v.iter()
+        .map(|i| i.to_string())
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// The named camera, or the scene's first, or a view of the bake's plan.
+fn start_pose(scene: &Scene, name: Option<&str>) -> Result<CameraDesc> {
+    match name {
+        Some(n) => Ok(scene.camera(n)?.clone()),
+        None => scene.cameras.first().cloned().with_context(|| {
+            format!(
+                "{} names no camera to start at: pass --camera or --path",
+                scene.source.display()
+            )
+        }),
+    }
+}
+
+/// A quarter of the view space's longest side per second, so crossing it
+/// takes a few seconds; without a view space, a tenth of the scene's.
+fn default_speed(scene: &Scene) -> f32 {
+    use crate::scene::ViewSpace;
+    let extent = match scene.view_space {
+        Some(ViewSpace::Segment { a, b }) => (b - a).length(),
+        Some(ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max }) => {
+            (max - min).max_element()
+        }
+        None => 0.0,
+    };
+    if extent > 0.0 {
+        extent / 4.0
+    } else {
+        let (lo, hi) = scene.bounds(scene.animation.start);
+        ((hi - lo).length() / 10.0).max(f32::MIN_POSITIVE)
+    }
+}
+
+/// Renames the recording's staging folder to `dir` once every frame is in.
+fn finish_record(staged: &Path, dir: &Path) -> Result<()> {
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).with_context(|| format!("replacing {}", dir.display()))?;
+    }
+    std::fs::rename(staged, dir)
+        .with_context(|| format!("renaming {} to {}", staged.display(), dir.display()))
+}

@@ -8,6 +8,8 @@
 pub mod accel;
 pub mod bake;
 pub mod camera;
+#[allow(unsafe_code)]
+pub mod capi;
 #[cfg(feature = "embree")]
 pub mod embree;
 pub mod eval;

@@ -84,7 +84,7 @@ enum Command {
     Radiosity {
         scene: PathBuf,
         /// Quality in [0, 1]: finer simplification, more solves.
-        #[arg(long, default_value_t = 0.5)]
+        #[arg(long, default_value_t = radiosity::DEFAULT_QUALITY)]
         quality: f32,
         /// Bake directory to write (replaced if it holds an earlier bake).
         #[arg(long)]
@@ -396,7 +396,7 @@ fn render_multipass(
     let (simplified, series) = match &args.bake {
         Some(dir) if dir.join(radiosity_bake::MANIFEST).exists() => load_bake(s, dir, q)?,
         bake_dir => {
-            let q = q.unwrap_or(Quality::new(0.5)?);
+            let q = q.unwrap_or(Quality::new(radiosity::DEFAULT_QUALITY)?);
             let (simplified, series) = radiosity::simplify_and_decompose(s, engine, q)?;
             if let Some(dir) = bake_dir {
                 radiosity_bake::save_with(dir, scene_path, &simplified, &series)?;
@@ -721,10 +721,10 @@ struct BakeArgs {
     size: Option<u32>,
     /// Size of the frames that will be synthesized, `<W>x<H>`: sets the
     /// default --size so that no base pixel is coarser than a frame pixel.
-    #[arg(long, default_value = "512x512", value_parser = image::parse_size)]
+    #[arg(long, default_value = bake::DEFAULT_FRAME_SIZE, value_parser = image::parse_size)]
     frame_size: (u32, u32),
     /// Samples per base-image pixel.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = bake::DEFAULT_SPP)]
     spp: u32,
     #[arg(long, value_enum, default_value_t = BaseProjection::Sphere)]
     projection: BaseProjection,
@@ -757,31 +757,8 @@ fn bake_command(args: BakeArgs) -> Result<()> {
     use rangewalk::plan::{self, PlanOptions};
     let quality = Quality::new(args.quality).context("--quality")?;
     let s = load(&args.scene)?;
-    let size = match args.size {
-        Some(0) => bail!("--size must be at least 1"),
-        Some(n) => {
-            println!(
-                "base images: {n}x{n} {} (--size)",
-                format!("{:?}", args.projection).to_lowercase()
-            );
-            n
-        }
-        None => {
-            let (w, h) = args.frame_size;
-            let Some(fov) = bake::size::narrowest_fov(&s) else {
-                bail!(
-                    "{} has no camera or walk path to size base images from: pass --size",
-                    s.source.display()
-                );
-            };
-            let n = bake::size::base_size(args.projection, args.frame_size, fov);
-            println!(
-                "base images: {n}x{n} {}, so that no base pixel is coarser than a pixel of a {w}x{h} frame at the scene's narrowest field of view, {fov}°",
-                format!("{:?}", args.projection).to_lowercase()
-            );
-            n
-        }
-    };
+    let (size, why) = bake::size::resolve(&s, args.size, args.projection, args.frame_size)?;
+    println!("{why}");
     let settings = bake::Settings {
         quality: quality.get(),
         size,

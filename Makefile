@@ -8,7 +8,7 @@ CARGO ?= cargo
 VENV := .venv
 PYTHON := $(VENV)/bin/python
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-DEB_PACKAGES := libembree-dev libopenimageio-dev libclang-dev pkg-config g++ python3 python3-venv fonts-dejavu-core
+DEB_PACKAGES := libembree-dev libopenimageio-dev libclang-dev pkg-config g++ cmake python3 python3-venv fonts-dejavu-core
 PY_PACKAGES := mitsuba==3.9.1 flip-evaluator==1.7 numpy
 DEMO_SCENE := scenes/cornell-box/scene.toml
 DEMO_SIZE := 256x256
@@ -17,7 +17,7 @@ RW := target/release/rangewalk
 
 export RANGEWALK_PYTHON := $(abspath $(PYTHON))
 
-.PHONY: demo test deps debs venv build lint bench clean
+.PHONY: demo test deps debs venv build lint bench clean install capi-test
 
 # The framework's main job on the animated Cornell box: plan and bake base
 # images, walk the scene's path from them, path-trace every fifth frame of
@@ -38,6 +38,37 @@ demo: deps build
 test: deps build lint
 	$(CARGO) test --release
 	$(CARGO) test --release --no-default-features
+	$(MAKE) --no-print-directory capi-test
+
+# The C ABI for C++ pipelines: the shared and static libraries, the header,
+# a pkg-config file and a CMake package (find_package(rangewalk)).
+PREFIX ?= /usr/local
+VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' Cargo.toml | head -n 1)
+install: build
+	install -d $(DESTDIR)$(PREFIX)/lib/pkgconfig $(DESTDIR)$(PREFIX)/lib/cmake/rangewalk $(DESTDIR)$(PREFIX)/include
+	install -m 755 target/release/librangewalk.so $(DESTDIR)$(PREFIX)/lib/
+	install -m 644 target/release/librangewalk.a $(DESTDIR)$(PREFIX)/lib/
+	install -m 644 include/rangewalk.h $(DESTDIR)$(PREFIX)/include/
+	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|$(VERSION)|' dist/rangewalk.pc.in > $(DESTDIR)$(PREFIX)/lib/pkgconfig/rangewalk.pc
+	for f in rangewalkConfig rangewalkConfigVersion; do \
+	  sed -e 's|@VERSION@|$(VERSION)|' dist/$$f.cmake.in > $(DESTDIR)$(PREFIX)/lib/cmake/rangewalk/$$f.cmake; \
+	done
+
+# The C++ example (CMake, find_package) and the C test of every error path
+# (CMake, pkg-config), built against an installed copy with AddressSanitizer
+# and UndefinedBehaviorSanitizer; any report fails the run.
+CAPI := out/capi
+CAPI_PREFIX := $(abspath $(CAPI)/prefix)
+SANITIZERS := ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+capi-test: build
+	rm -rf $(CAPI)
+	$(MAKE) --no-print-directory install PREFIX=$(CAPI_PREFIX)
+	cmake -S examples/cpp -B $(CAPI)/pipeline -DSANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_PREFIX_PATH=$(CAPI_PREFIX) > /dev/null
+	cmake --build $(CAPI)/pipeline
+	PKG_CONFIG_PATH=$(CAPI_PREFIX)/lib/pkgconfig cmake -S tests/capi -B $(CAPI)/errors -DSANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo > /dev/null
+	cmake --build $(CAPI)/errors
+	$(SANITIZERS) $(CAPI)/pipeline/pipeline $(DEMO_SCENE) $(CAPI)/run $(abspath $(RW))
+	$(SANITIZERS) $(CAPI)/errors/error_paths $(DEMO_SCENE) scenes/furnace/scene.toml $(CAPI)/run/bake $(CAPI)/errors/work
 
 deps: debs venv
 

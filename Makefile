@@ -35,10 +35,12 @@ demo: deps build
 	@mv out/demo.partial out/demo
 	@echo "demo written to out/demo/: bake/ (base images), walk/ (frames, walk.png animation, contact.png: synthesized above path-traced, summary.json), synth-main-t0.5.png, summary.txt (time of every phase, error)"
 
+# capi-test runs before the pure-Rust tests: those rebuild
+# target/release/librangewalk.so without Embree and OpenImageIO.
 test: deps build lint
 	$(CARGO) test --release
-	$(CARGO) test --release --no-default-features
 	$(MAKE) --no-print-directory capi-test
+	$(CARGO) test --release --no-default-features
 
 # The C ABI for C++ pipelines: the shared and static libraries, the header,
 # a pkg-config file and a CMake package (find_package(rangewalk)).

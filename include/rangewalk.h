@@ -276,6 +276,28 @@ void rw_bake_free(rw_bake *bake);
 // `buf` is NULL or points to `len` writable bytes.
 size_t rw_last_error(char *buf, size_t len);
 
+// Writes the number of base views of the bake's plan into `*count`.
+//
+// # Safety
+// `bake` is NULL or a live bake; `count` NULL or writable.
+rw_status rw_bake_view_count(const rw_bake *bake, size_t *count);
+
+// Base view `view` of the plan: its position into `position` (3 floats),
+// the number of its base times into `*time_count`, and, unless `times` is
+// NULL, the first `min(times_len, *time_count)` of those times (seconds,
+// ascending) into `times`. Thread-safe.
+//
+// # Safety
+// `bake` is NULL or a live bake; `position` NULL or 3 writable floats;
+// `times` NULL or `times_len` writable floats; `time_count` NULL or
+// writable.
+rw_status rw_bake_view(const rw_bake *bake,
+                       size_t view,
+                       float *position,
+                       float *times,
+                       size_t times_len,
+                       size_t *time_count);
+
 // Path traces `view` of the scene at `time` into `rgb` (`width * height`
 // RGB triples of linear radiance, rows top to bottom), as `rangewalk
 // render --spp <spp> --seed <seed>` does with its other defaults (the

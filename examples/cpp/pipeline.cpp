@@ -140,6 +140,14 @@ int main(int argc, char **argv) try {
   // Four threads synthesize at once, each the main view at t = 0.5 and a
   // frame of the walk path at its own time, twice over.
   Bake bake(bake_dir);
+  size_t views = 0;
+  check(rw_bake_view_count(bake.p, &views), "rw_bake_view_count");
+  for (size_t v = 0; v < views; ++v) {
+    float position[3];
+    size_t times = 0;
+    check(rw_bake_view(bake.p, v, position, nullptr, 0, &times), "rw_bake_view");
+    std::printf("base view %zu at (%g, %g, %g): %zu times\n", v, position[0], position[1], position[2], times);
+  }
   const uint32_t w = 96, h = 72;
   const size_t n = size_t(w) * h;
   std::vector<std::vector<float>> rgb(4, std::vector<float>(n * 3)), dist(4, std::vector<float>(n));

@@ -14,6 +14,7 @@
 mod args;
 pub mod bake;
 pub mod error;
+pub mod plan;
 pub mod render;
 pub mod scene;
 pub mod status;

@@ -212,6 +212,22 @@ int main(int argc, char **argv) {
 
     /* Synthesis. */
     EXPECT(rw_bake_open_with_scene(scene, bake_dir, &bake), RW_OK, NULL);
+
+    /* The plan. */
+    size_t views = 0, time_count = 0;
+    float position[3] = {-1, -1, -1}, times[2] = {-1, -1};
+    EXPECT(rw_bake_view_count(NULL, &views), RW_INVALID_ARGUMENT, "`bake` is NULL");
+    EXPECT(rw_bake_view_count(bake, NULL), RW_INVALID_ARGUMENT, "`count` is NULL");
+    EXPECT(rw_bake_view_count(bake, &views), RW_OK, NULL);
+    CHECK(views >= 2);
+    EXPECT(rw_bake_view(bake, views, position, times, 2, &time_count), RW_INVALID_ARGUMENT, "not below");
+    EXPECT(rw_bake_view(bake, 0, NULL, times, 2, &time_count), RW_INVALID_ARGUMENT, "`position` is NULL");
+    EXPECT(rw_bake_view(bake, 0, position, times, 2, NULL), RW_INVALID_ARGUMENT, "`time_count` is NULL");
+    CHECK(untouched(position, 3) && untouched(times, 2) && time_count == 0);
+    EXPECT(rw_bake_view(bake, 0, position, NULL, 0, &time_count), RW_OK, NULL);
+    CHECK(time_count >= 1 && position[1] == 273.0f);
+    EXPECT(rw_bake_view(bake, 0, position, times, 1, &time_count), RW_OK, NULL);
+    CHECK(times[0] == 0.0f && times[1] == -1.0f);
     rw_scene_free(other);
     fill(rgb, W * H * 3);
     fill(distance, W * H);

@@ -62,6 +62,29 @@ impl rw_view {
     }
 }
 
+/// Writes the view `pick` finds by name in the scene into `*out`.
+///
+/// # Safety
+/// As [`rw_scene_camera`].
+unsafe fn named(
+    scene: *const rw_scene,
+    name: *const c_char,
+    out: *mut rw_view,
+    pick: impl FnOnce(&crate::scene::Scene, &str) -> anyhow::Result<CameraDesc>,
+) -> rw_status {
+    guard(|| {
+        // SAFETY: as the caller promises.
+        let scene = unsafe { args::handle(scene, "scene") }?;
+        // SAFETY: as the caller promises.
+        let name = unsafe { args::string(name, "name") }?;
+        args::out(out, "out")?;
+        let desc = pick(&scene.scene, &name).map_err(|e| Failure::invalid(format!("{e:#}")))?;
+        // SAFETY: checked not NULL; writable by the caller's promise.
+        unsafe { out.write(rw_view::of(&desc)) };
+        Ok(())
+    })
+}
+
 /// The scene's camera `name` as a view (`look_at` one unit ahead).
 ///
 /// # Safety
@@ -73,20 +96,8 @@ pub unsafe extern "C" fn rw_scene_camera(
     name: *const c_char,
     out: *mut rw_view,
 ) -> rw_status {
-    guard(|| {
-        // SAFETY: as the caller promises (see above).
-        let scene = unsafe { args::handle(scene, "scene") }?;
-        // SAFETY: as the caller promises.
-        let name = unsafe { args::string(name, "name") }?;
-        args::out(out, "out")?;
-        let desc = scene
-            .scene
-            .camera(&name)
-            .map_err(|e| Failure::invalid(format!("{e:#}")))?;
-        // SAFETY: checked not NULL; writable by the caller's promise.
-        unsafe { out.write(rw_view::of(desc)) };
-        Ok(())
-    })
+    // SAFETY: passed on as the caller promises.
+    unsafe { named(scene, name, out, |s, name| s.camera(name).cloned()) }
 }
 
 /// The viewer of the scene's walk path `name` at `time` (keys interpolated
@@ -101,21 +112,11 @@ pub unsafe extern "C" fn rw_scene_path_view(
     time: f32,
     out: *mut rw_view,
 ) -> rw_status {
-    guard(|| {
-        // SAFETY: as the caller promises.
-        let scene = unsafe { args::handle(scene, "scene") }?;
-        // SAFETY: as the caller promises.
-        let name = unsafe { args::string(name, "name") }?;
-        args::out(out, "out")?;
-        if !time.is_finite() {
-            return Err(Failure::invalid(format!("time {time} is not finite")));
-        }
-        let path = scene
-            .scene
-            .path(&name)
-            .map_err(|e| Failure::invalid(format!("{e:#}")))?;
-        // SAFETY: checked not NULL; writable by the caller's promise.
-        unsafe { out.write(rw_view::of(&path.at(time))) };
-        Ok(())
-    })
+    // SAFETY: passed on as the caller promises.
+    unsafe {
+        named(scene, name, out, |s, name| {
+            anyhow::ensure!(time.is_finite(), "time {time} is not finite");
+            Ok(s.path(name)?.at(time))
+        })
+    }
 }

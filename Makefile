@@ -8,7 +8,7 @@ CARGO ?= cargo
 VENV := .venv
 PYTHON := $(VENV)/bin/python
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-DEB_PACKAGES := libembree-dev libopenimageio-dev libclang-dev pkg-config g++ python3 python3-venv fonts-dejavu-core slurm-wlm munge xvfb xauth libx11-6 libxcursor1
+DEB_PACKAGES := libembree-dev libopenimageio-dev libclang-dev pkg-config g++ cmake python3 python3-venv fonts-dejavu-core slurm-wlm munge xvfb xauth libx11-6 libxcursor1
 PY_PACKAGES := mitsuba==3.9.1 flip-evaluator==1.7 numpy
 DEMO_SCENE := scenes/cornell-box/scene.toml
 DEMO_SIZE := 256x256
@@ -17,7 +17,7 @@ RW := target/release/rangewalk
 
 export RANGEWALK_PYTHON := $(abspath $(PYTHON))
 
-.PHONY: demo test deps debs venv build lint bench clean
+.PHONY: demo test deps debs venv build lint bench clean install capi-test
 
 # The framework's main job on the animated Cornell box: plan and bake base
 # images, walk the scene's path from them, path-trace every fifth frame of
@@ -36,9 +36,42 @@ demo: deps build
 	@echo "demo written to out/demo/: bake/ (base images), walk/ (frames, walk.png animation, contact.png: synthesized above path-traced, summary.json), synth-main-t0.5.png, summary.txt (time of every phase, error)"
 	@echo "walk through it in a window: $(RW) view out/demo/bake --size $(DEMO_SIZE) (keys: docs/viewer.md; without a display: xvfb-run $(RW) view out/demo/bake --path walk --screenshot out/demo/view.png)"
 
+# capi-test runs before the pure-Rust tests: those rebuild
+# target/release/librangewalk.so without Embree and OpenImageIO.
 test: deps build lint
 	$(CARGO) test --release
+	$(MAKE) --no-print-directory capi-test
 	$(CARGO) test --release --no-default-features
+
+# The C ABI for C++ pipelines: the shared and static libraries, the header,
+# a pkg-config file and a CMake package (find_package(rangewalk)).
+PREFIX ?= /usr/local
+VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' Cargo.toml | head -n 1)
+install: build
+	install -d $(DESTDIR)$(PREFIX)/lib/pkgconfig $(DESTDIR)$(PREFIX)/lib/cmake/rangewalk $(DESTDIR)$(PREFIX)/include
+	install -m 755 target/release/librangewalk.so $(DESTDIR)$(PREFIX)/lib/
+	install -m 644 target/release/librangewalk.a $(DESTDIR)$(PREFIX)/lib/
+	install -m 644 include/rangewalk.h $(DESTDIR)$(PREFIX)/include/
+	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|$(VERSION)|' dist/rangewalk.pc.in > $(DESTDIR)$(PREFIX)/lib/pkgconfig/rangewalk.pc
+	for f in rangewalkConfig rangewalkConfigVersion; do \
+	  sed -e 's|@VERSION@|$(VERSION)|' dist/$$f.cmake.in > $(DESTDIR)$(PREFIX)/lib/cmake/rangewalk/$$f.cmake; \
+	done
+
+# The C++ example (CMake, find_package) and the C test of every error path
+# (CMake, pkg-config), built against an installed copy with AddressSanitizer
+# and UndefinedBehaviorSanitizer; any report fails the run.
+CAPI := out/capi
+CAPI_PREFIX := $(abspath $(CAPI)/prefix)
+SANITIZERS := ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+capi-test: build
+	rm -rf $(CAPI)
+	$(MAKE) --no-print-directory install PREFIX=$(CAPI_PREFIX)
+	cmake -S examples/cpp -B $(CAPI)/pipeline -DSANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_PREFIX_PATH=$(CAPI_PREFIX) > /dev/null
+	cmake --build $(CAPI)/pipeline
+	PKG_CONFIG_PATH=$(CAPI_PREFIX)/lib/pkgconfig cmake -S tests/capi -B $(CAPI)/errors -DSANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo > /dev/null
+	cmake --build $(CAPI)/errors
+	$(SANITIZERS) $(CAPI)/pipeline/pipeline $(DEMO_SCENE) $(CAPI)/run $(abspath $(RW))
+	$(SANITIZERS) $(CAPI)/errors/error_paths $(DEMO_SCENE) scenes/furnace/scene.toml $(CAPI)/run/bake $(CAPI)/errors/work
 
 deps: debs venv
 

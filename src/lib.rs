@@ -15,6 +15,8 @@
 pub mod accel;
 pub mod bake;
 pub mod camera;
+#[allow(unsafe_code)]
+pub mod capi;
 #[cfg(feature = "embree")]
 #[allow(unsafe_code)]
 mod embree;

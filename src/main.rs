@@ -84,7 +84,7 @@ enum Command {
     Radiosity {
         scene: PathBuf,
         /// Quality in [0, 1]: finer simplification, more solves.
-        #[arg(long, default_value_t = 0.5)]
+        #[arg(long, default_value_t = radiosity::DEFAULT_QUALITY)]
         quality: f32,
         /// Bake directory to write (replaced if it holds an earlier bake).
         #[arg(long)]
@@ -413,7 +413,7 @@ fn render_multipass(
     let (simplified, series) = match &args.bake {
         Some(dir) if dir.join(radiosity_bake::MANIFEST).exists() => load_bake(s, dir, q)?,
         bake_dir => {
-            let q = q.unwrap_or(Quality::new(0.5)?);
+            let q = q.unwrap_or(Quality::new(radiosity::DEFAULT_QUALITY)?);
             let (simplified, series) = radiosity::simplify_and_decompose(s, engine, q)?;
             if let Some(dir) = bake_dir {
                 radiosity_bake::save(dir, s, &simplified, &series)?;
@@ -753,10 +753,10 @@ struct BakeOptions {
     size: Option<u32>,
     /// Size of the frames that will be synthesized, `<W>x<H>`: sets the
     /// default --size so that no base pixel is coarser than a frame pixel.
-    #[arg(long, default_value = "512x512", value_parser = image::parse_size)]
+    #[arg(long, default_value = bake::DEFAULT_FRAME_SIZE, value_parser = image::parse_size)]
     frame_size: (u32, u32),
     /// Samples per base-image pixel.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = bake::DEFAULT_SPP)]
     spp: u32,
     #[arg(long, value_enum, default_value_t = BaseProjection::Sphere)]
     projection: BaseProjection,
@@ -783,24 +783,7 @@ impl BakeOptions {
     /// The settings these options give for `s`, and a line saying how the
     /// image size was chosen.
     fn settings(&self, s: &Scene, quality: Quality) -> Result<(bake::Settings, String)> {
-        let projection = format!("{:?}", self.projection).to_lowercase();
-        let (size, why) = match self.size {
-            Some(0) => bail!("--size must be at least 1"),
-            Some(n) => (n, format!("base images: {n}x{n} {projection} (--size)")),
-            None => {
-                let (w, h) = self.frame_size;
-                let Some(fov) = bake::size::narrowest_fov(s) else {
-                    bail!(
-                        "{} has no camera or walk path to size base images from: pass --size",
-                        s.source.display()
-                    );
-                };
-                let n = bake::size::base_size(self.projection, self.frame_size, fov);
-                (n, format!(
-                    "base images: {n}x{n} {projection}, so that no base pixel is coarser than a pixel of a {w}x{h} frame at the scene's narrowest field of view, {fov}°"
-                ))
-            }
-        };
+        let (size, why) = bake::size::resolve(s, self.size, self.projection, self.frame_size)?;
         let settings = bake::Settings {
             quality: quality.get(),
             size,

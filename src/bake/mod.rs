@@ -115,6 +115,24 @@ impl std::str::FromStr for Shard {
     }
 }
 
+/// Samples per base-image pixel of `rangewalk bake` and the C ABI.
+pub const DEFAULT_SPP: u32 = 16;
+/// Frame size (`<W>x<H>`) base images are sized for when no size is given.
+pub const DEFAULT_FRAME_SIZE: &str = "512x512";
+
+/// The error of a bake stopped by its observer (see [`run_observed`]); the
+/// bake directory stays resumable.
+#[derive(Debug)]
+pub struct Cancelled;
+
+impl std::fmt::Display for Cancelled {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("the bake was cancelled; running it again resumes it")
+    }
+}
+
+impl std::error::Error for Cancelled {}
+
 /// What one run did.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Summary {
@@ -215,6 +233,23 @@ pub fn run(
     engine: &mut dyn InstancedEngine,
     plan: impl FnOnce(&mut dyn InstancedEngine) -> Result<Plan>,
 ) -> Result<Summary> {
+    run_observed(scene, dir, settings, shard, engine, plan, &mut |_| true)
+}
+
+/// [`run`], telling `observe` on the calling thread the fraction of this
+/// run's images finished: 0 before the first (after planning and
+/// radiosity), then after each image. Answering `false` stops the run
+/// before its next image with [`Cancelled`], leaving the bake to be
+/// resumed; a run with nothing left to render never asks.
+pub fn run_observed(
+    scene: &Scene,
+    dir: &Path,
+    settings: &Settings,
+    shard: Shard,
+    engine: &mut dyn InstancedEngine,
+    plan: impl FnOnce(&mut dyn InstancedEngine) -> Result<Plan>,
+    observe: &mut dyn FnMut(f32) -> bool,
+) -> Result<Summary> {
     let mut summary = Summary::default();
     let mut manifest = start_or_resume(scene, dir, settings, engine, plan, &mut summary)?;
     let quality = Quality::new(settings.quality).context("--quality")?;
@@ -253,6 +288,10 @@ pub fn run(
             .expect("progress template is valid"),
         );
         let start = Instant::now();
+        if !observe(0.0) {
+            bar.finish_and_clear();
+            return Err(Cancelled.into());
+        }
         for (n, &k) in todo.iter().enumerate() {
             let e = manifest.images[k].clone();
             bar.set_message(format!("image {}/{}", n + 1, todo.len()));
@@ -271,6 +310,10 @@ pub fn run(
             checked[k] = true;
             summary.samples += stats.samples;
             summary.rays += stats.rays;
+            if !observe((n + 1) as f32 / todo.len() as f32) && n + 1 < todo.len() {
+                bar.finish_and_clear();
+                return Err(Cancelled.into());
+            }
         }
         bar.finish_and_clear();
         summary.render_seconds = start.elapsed().as_secs_f64();

@@ -3,6 +3,8 @@
 //! blocks what a direct render would show (the paper's "resampled radiance"
 //! error, its Table 3).
 
+use anyhow::{bail, Result};
+
 use crate::scene::Scene;
 
 use super::BaseProjection;
@@ -42,6 +44,38 @@ pub fn base_size(projection: BaseProjection, frame: (u32, u32), vfov_deg: f32) -
     };
     let n = (span / theta).ceil() as u32;
     n.div_ceil(16).max(1) * 16
+}
+
+/// The side of a bake's base images: `size` if given, else sized for
+/// `frame`-sized frames at the scene's narrowest field of view; with the
+/// sentence that says where it came from.
+pub fn resolve(
+    scene: &Scene,
+    size: Option<u32>,
+    projection: BaseProjection,
+    frame: (u32, u32),
+) -> Result<(u32, String)> {
+    let kind = format!("{projection:?}").to_lowercase();
+    match size {
+        Some(0) => bail!("--size must be at least 1"),
+        Some(n) => Ok((n, format!("base images: {n}x{n} {kind} (--size)"))),
+        None => {
+            let (w, h) = frame;
+            let Some(fov) = narrowest_fov(scene) else {
+                bail!(
+                    "{} has no camera or walk path to size base images from: pass --size",
+                    scene.source.display()
+                );
+            };
+            let n = base_size(projection, frame, fov);
+            Ok((
+                n,
+                format!(
+                    "base images: {n}x{n} {kind}, so that no base pixel is coarser than a pixel of a {w}x{h} frame at the scene's narrowest field of view, {fov}°"
+                ),
+            ))
+        }
+    }
 }
 
 #[cfg(test)]

@@ -101,6 +101,9 @@ impl RangeImage {
 pub const MAX_PIXELS: u64 = 8192 * 8192;
 
 /// Parses an image size `<W>x<H>` given on a command line.
+/// The widest and tallest image any command or the C ABI makes.
+pub const MAX_SIDE: u32 = 32768;
+
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let err = || format!("size `{s}` is not <W>x<H> with positive integers, e.g. 512x512");
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(err)?;
@@ -108,7 +111,7 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
         w.trim().parse::<u32>().map_err(|_| err())?,
         h.trim().parse::<u32>().map_err(|_| err())?,
     );
-    if w == 0 || h == 0 || w > 32768 || h > 32768 {
+    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
         return Err(err());
     }
     if u64::from(w) * u64::from(h) > MAX_PIXELS {

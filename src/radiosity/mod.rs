@@ -49,6 +49,10 @@ pub fn simplify_and_decompose(
 #[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
 pub struct Quality(f32);
 
+/// The quality of the radiosity stages where none is given (`rangewalk
+/// radiosity`, `render --indirect radiosity`, the C ABI's bake).
+pub const DEFAULT_QUALITY: f32 = 0.5;
+
 impl Quality {
     pub fn new(q: f32) -> Result<Self> {
         ensure!((0.0..=1.0).contains(&q), "quality {q} is outside [0, 1]");

@@ -360,6 +360,10 @@ impl BaseCache {
         }
     }
 
+    pub fn budget(&self) -> usize {
+        self.budget
+    }
+
     pub fn bytes(&self) -> usize {
         self.held.values().map(|(b, _)| b.bytes()).sum()
     }

@@ -5,10 +5,15 @@ use std::path::PathBuf;
 use anyhow::{bail, ensure, Context, Result};
 
 use super::walk::{self, WalkSettings};
-use super::{check_bake, view_space_warning, Blend, Fill, Options, Synthesizer, TimeInterp};
+use super::{
+    check_bake, view_space_warning, Blend, Fill, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET,
+};
 use crate::bake::Bake;
 use crate::image;
 use crate::scene::Scene;
+
+/// Frame size of `rangewalk synth` and `walk`.
+pub const DEFAULT_SIZE: &str = "512x512";
 
 /// How frames are made from the bases (shared by `synth` and `walk`).
 #[derive(clap::Args, Clone, Debug)]
@@ -18,35 +23,35 @@ pub struct SynthOptions {
     #[arg(long)]
     pub scene: Option<PathBuf>,
     /// Hole filling (pinterp's -f0, -ff, -fb, -fa).
-    #[arg(long, value_enum, default_value_t = Fill::Both)]
+    #[arg(long, value_enum, default_value_t = Options::default().fill)]
     pub fill: Fill,
     /// Interpolation between base times.
-    #[arg(long, value_enum, default_value_t = TimeInterp::Motion)]
+    #[arg(long, value_enum, default_value_t = Options::default().time_interp)]
     pub time_interp: TimeInterp,
     /// Base views to project, nearest first.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = Options::default().bases)]
     pub bases: usize,
     /// Samples within the depth tolerance: averaged by ray angle, or the
     /// nearest base's.
-    #[arg(long, value_enum, default_value_t = Blend::Average)]
+    #[arg(long, value_enum, default_value_t = Options::default().blend)]
     pub blend: Blend,
     /// Relative depth tolerance of the z-buffer.
-    #[arg(long, default_value_t = 0.02)]
+    #[arg(long, default_value_t = Options::default().tolerance)]
     pub tolerance: f32,
     /// Farthest a background fill carries a value, in pixels.
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = Options::default().fill_reach)]
     pub fill_reach: u16,
     /// Light samples per pixel when re-shading.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = Options::default().reshade_samples)]
     pub reshade_samples: u32,
     /// Rays per side of a pixel at or beside a light, traced to find what
     /// fraction of it the light covers; 0 keeps lights as reprojected.
     #[arg(long, default_value_t = Options::default().light_rays)]
     pub light_rays: u32,
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = Options::default().seed)]
     pub seed: u64,
     /// Memory for bases held between frames, in MiB.
-    #[arg(long, default_value_t = 1800)]
+    #[arg(long, default_value_t = DEFAULT_BUDGET >> 20)]
     pub base_memory: usize,
     /// Exposure of previews in stops.
     #[arg(long, default_value_t = 0.0)]
@@ -81,18 +86,24 @@ impl SynthOptions {
     /// The bake in `dir` and the scene it was made from, checked against
     /// each other.
     pub fn open(&self, dir: &std::path::Path) -> Result<(Scene, Bake)> {
-        let manifest = crate::bake::Manifest::read(dir)?;
-        let path = self.scene.clone().unwrap_or(manifest.scene);
-        let scene = Scene::load(&path).with_context(|| {
-            format!(
-                "loading the scene of {} (pass --scene where it has moved)",
-                dir.display()
-            )
-        })?;
-        let bake = Bake::open(dir, &scene)?;
-        check_bake(&bake)?;
-        Ok((scene, bake))
+        open(dir, self.scene.as_deref())
     }
+}
+
+/// The bake in `dir` and its scene (from `scene`, else the one its
+/// manifest names), checked against each other.
+pub fn open(dir: &std::path::Path, scene: Option<&std::path::Path>) -> Result<(Scene, Bake)> {
+    let manifest = crate::bake::Manifest::read(dir)?;
+    let path = scene.map_or(manifest.scene, std::path::Path::to_path_buf);
+    let scene = Scene::load(&path).with_context(|| {
+        format!(
+            "loading the scene of {} (pass --scene where it has moved)",
+            dir.display()
+        )
+    })?;
+    let bake = Bake::open(dir, &scene)?;
+    check_bake(&bake)?;
+    Ok((scene, bake))
 }
 
 #[derive(clap::Args, Clone, Debug)]
@@ -109,7 +120,7 @@ pub struct SynthArgs {
     /// Scene time in seconds.
     #[arg(long)]
     pub time: f32,
-    #[arg(long, default_value = "512x512", value_parser = image::parse_size)]
+    #[arg(long, default_value = DEFAULT_SIZE, value_parser = image::parse_size)]
     pub size: (u32, u32),
     /// Output range image (OpenEXR).
     #[arg(long)]
@@ -178,7 +189,7 @@ pub struct WalkArgs {
     /// Walk path of the scene.
     #[arg(long)]
     pub path: String,
-    #[arg(long, default_value = "512x512", value_parser = image::parse_size)]
+    #[arg(long, default_value = DEFAULT_SIZE, value_parser = image::parse_size)]
     pub size: (u32, u32),
     /// Output folder: frames (EXR and PNG), walk.png (animated), summary.json.
     #[arg(long)]

@@ -125,13 +125,50 @@ pub struct Synthesizer<'a> {
 /// Memory kept for bases by default: eight 2,600² bases fit.
 pub const DEFAULT_BUDGET: usize = 1800 << 20;
 
+/// What a synthesizer keeps from frame to frame (the bases it read, its ray
+/// engine) apart from the scene and bake it borrows, so that an owner of
+/// both can keep it between synthesizers: the C ABI pools these for the
+/// threads that synthesize from one bake.
+pub struct Kept {
+    cache: BaseCache,
+    engine: Option<(Box<dyn InstancedEngine>, f32)>,
+}
+
+impl Kept {
+    pub fn new(budget_bytes: usize) -> Self {
+        Self {
+            cache: BaseCache::new(budget_bytes),
+            engine: None,
+        }
+    }
+
+    /// The memory budget for bases it was made with.
+    pub fn budget(&self) -> usize {
+        self.cache.budget()
+    }
+}
+
 impl<'a> Synthesizer<'a> {
     pub fn new(scene: &'a Scene, bake: &'a Bake, budget_bytes: usize) -> Self {
+        Self::resume(scene, bake, Kept::new(budget_bytes))
+    }
+
+    /// A synthesizer that goes on from what an earlier one over the same
+    /// scene and bake kept.
+    pub fn resume(scene: &'a Scene, bake: &'a Bake, kept: Kept) -> Self {
         Self {
             scene,
             bake,
-            cache: BaseCache::new(budget_bytes),
-            engine: None,
+            cache: kept.cache,
+            engine: kept.engine,
+        }
+    }
+
+    /// What this synthesizer read and built, for [`Synthesizer::resume`].
+    pub fn suspend(self) -> Kept {
+        Kept {
+            cache: self.cache,
+            engine: self.engine,
         }
     }
 

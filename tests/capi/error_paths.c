@@ -1,0 +1,285 @@
+/* Every error path of rangewalk's C ABI: NULL handles and pointers,
+ * missing and invalid files, a bake of another scene, an unfinished bake,
+ * zero and overflowing sizes, bad options, a cancelled bake and a panic.
+ * Each failure must return its status, say why in rw_last_error, and leave
+ * the outputs untouched.
+ *
+ *   error_paths <cornell scene.toml> <other scene.toml> <cornell bake dir> <work dir>
+ */
+
+#include <rangewalk.h>
+
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+static int failures = 0;
+static int checks = 0;
+
+static const char *last_error(void) {
+    static char buf[4096];
+    rw_last_error(buf, sizeof buf);
+    return buf;
+}
+
+/* A call must return `want` and its message must contain `needle`. */
+static void expect(rw_status got, rw_status want, const char *needle, const char *what, int line) {
+    ++checks;
+    const char *message = got == RW_OK ? "" : last_error();
+    if (got != want || (needle && !strstr(message, needle))) {
+        ++failures;
+        fprintf(stderr, "line %d: %s: got %s (%s), want %s with \"%s\"\n", line, what,
+                rw_status_name(got), message, rw_status_name(want), needle ? needle : "");
+    }
+}
+
+#define EXPECT(call, want, needle) expect((call), (want), (needle), #call, __LINE__)
+#define CHECK(cond)                                                          \
+    do {                                                                     \
+        ++checks;                                                            \
+        if (!(cond)) {                                                       \
+            ++failures;                                                      \
+            fprintf(stderr, "line %d: %s does not hold\n", __LINE__, #cond); \
+        }                                                                    \
+    } while (0)
+
+static int untouched(const float *v, size_t n) {
+    for (size_t i = 0; i < n; ++i)
+        if (v[i] != -1.0f) return 0;
+    return 1;
+}
+
+static void fill(float *v, size_t n) {
+    for (size_t i = 0; i < n; ++i) v[i] = -1.0f;
+}
+
+static bool stop_at_once(void *userdata, float fraction) {
+    (void)fraction;
+    ++*(int *)userdata;
+    return false;
+}
+
+static void *fail_in_another_thread(void *arg) {
+    (void)arg;
+    rw_scene *s = NULL;
+    rw_scene_load("/nonexistent/other-thread.toml", &s);
+    return NULL;
+}
+
+int main(int argc, char **argv) {
+    if (argc != 5) {
+        fprintf(stderr, "usage: %s <cornell scene> <other scene> <cornell bake> <work dir>\n", argv[0]);
+        return 2;
+    }
+    const char *cornell_path = argv[1], *other_path = argv[2], *bake_dir = argv[3], *work = argv[4];
+    mkdir(work, 0755);
+
+    /* Static strings, and no message before any failure. */
+    CHECK(strlen(rw_version()) > 0);
+    CHECK(strcmp(rw_status_name(RW_CANCELLED), "RW_CANCELLED") == 0);
+    CHECK(strcmp(rw_status_name(99), "RW_UNKNOWN") == 0);
+    CHECK(rw_last_error(NULL, 0) == 0);
+
+    /* Scenes. */
+    rw_scene *const sentinel = (rw_scene *)(uintptr_t)0x1;
+    rw_scene *scene = sentinel;
+    EXPECT(rw_scene_load(NULL, &scene), RW_INVALID_ARGUMENT, "`path` is NULL");
+    EXPECT(rw_scene_load(cornell_path, NULL), RW_INVALID_ARGUMENT, "`out` is NULL");
+    EXPECT(rw_scene_load("", &scene), RW_INVALID_ARGUMENT, "empty");
+    EXPECT(rw_scene_load("/nonexistent/scene.toml", &scene), RW_IO, "/nonexistent/scene.toml");
+    char bad[1024];
+    snprintf(bad, sizeof bad, "%s/bad.toml", work);
+    FILE *f = fopen(bad, "w");
+    fputs("[animation]\nstart = \"soon\"\n", f);
+    fclose(f);
+    EXPECT(rw_scene_load(bad, &scene), RW_SCENE, "bad.toml");
+    CHECK(scene == sentinel);
+    rw_scene_free(NULL);
+
+    /* Messages are per thread, and cut to the caller's buffer. */
+    pthread_t other_thread;
+    pthread_create(&other_thread, NULL, fail_in_another_thread, NULL);
+    pthread_join(other_thread, NULL);
+    CHECK(strstr(last_error(), "bad.toml") != NULL);
+    char small[8];
+    size_t full = rw_last_error(small, sizeof small);
+    CHECK(full > sizeof small && strlen(small) == sizeof small - 1);
+    CHECK(rw_last_error(small, 0) == full);
+
+    EXPECT(rw_scene_load(cornell_path, &scene), RW_OK, NULL);
+    rw_scene *other = NULL;
+    EXPECT(rw_scene_load(other_path, &other), RW_OK, NULL);
+
+    /* Views. */
+    rw_view view, kept;
+    memset(&kept, 0x55, sizeof kept);
+    view = kept;
+    EXPECT(rw_scene_camera(NULL, "main", &view), RW_INVALID_ARGUMENT, "`scene` is NULL");
+    EXPECT(rw_scene_camera(scene, NULL, &view), RW_INVALID_ARGUMENT, "`name` is NULL");
+    EXPECT(rw_scene_camera(scene, "main", NULL), RW_INVALID_ARGUMENT, "`out` is NULL");
+    EXPECT(rw_scene_camera(scene, "nowhere", &view), RW_INVALID_ARGUMENT, "nowhere");
+    EXPECT(rw_scene_path_view(scene, "nowhere", 0.5f, &view), RW_INVALID_ARGUMENT, "nowhere");
+    EXPECT(rw_scene_path_view(scene, "walk", NAN, &view), RW_INVALID_ARGUMENT, "time");
+    CHECK(memcmp(&view, &kept, sizeof view) == 0);
+    EXPECT(rw_scene_camera(scene, "main", &view), RW_OK, NULL);
+
+    /* Rendering: every argument checked, the output untouched on failure. */
+    enum { W = 8, H = 6 };
+    float rgb[W * H * 3], distance[W * H];
+    fill(rgb, W * H * 3);
+    EXPECT(rw_render(NULL, &view, 0, W, H, 1, 0, rgb), RW_INVALID_ARGUMENT, "`scene` is NULL");
+    EXPECT(rw_render(scene, NULL, 0, W, H, 1, 0, rgb), RW_INVALID_ARGUMENT, "`view` is NULL");
+    EXPECT(rw_render(scene, &view, 0, W, H, 1, 0, NULL), RW_INVALID_ARGUMENT, "`rgb` is NULL");
+    EXPECT(rw_render(scene, &view, 0, 0, H, 1, 0, rgb), RW_INVALID_ARGUMENT, "no pixels");
+    EXPECT(rw_render(scene, &view, 0, W, 0, 1, 0, rgb), RW_INVALID_ARGUMENT, "no pixels");
+    EXPECT(rw_render(scene, &view, 0, UINT32_MAX, UINT32_MAX, 1, 0, rgb), RW_INVALID_ARGUMENT, "exceeds");
+    EXPECT(rw_render(scene, &view, 0, W, H, 0, 0, rgb), RW_INVALID_ARGUMENT, "spp");
+    EXPECT(rw_render(scene, &view, INFINITY, W, H, 1, 0, rgb), RW_INVALID_ARGUMENT, "time");
+    rw_view bad_view = view;
+    bad_view.vfov_degrees = 0;
+    EXPECT(rw_render(scene, &bad_view, 0, W, H, 1, 0, rgb), RW_INVALID_ARGUMENT, "vfov_degrees");
+    bad_view = view;
+    memcpy(bad_view.look_at, bad_view.position, sizeof bad_view.position);
+    EXPECT(rw_render(scene, &bad_view, 0, W, H, 1, 0, rgb), RW_INVALID_ARGUMENT, "no length");
+    bad_view = view;
+    bad_view.position[1] = NAN;
+    EXPECT(rw_render(scene, &bad_view, 0, W, H, 1, 0, rgb), RW_INVALID_ARGUMENT, "position");
+    CHECK(untouched(rgb, W * H * 3));
+    EXPECT(rw_render(scene, &view, 0, W, H, 1, 0, rgb), RW_OK, NULL);
+    CHECK(!untouched(rgb, W * H * 3));
+
+    /* Bake options. */
+    EXPECT(rw_bake_options_default(NULL), RW_INVALID_ARGUMENT, "`options` is NULL");
+    rw_bake_options options;
+    EXPECT(rw_bake_options_default(&options), RW_OK, NULL);
+    CHECK(options.struct_size == sizeof options && options.spp == 16 && options.quality == 0.5f);
+    char fresh[1024];
+    snprintf(fresh, sizeof fresh, "%s/never-made", work);
+    rw_bake_options o = options;
+    o.quality = 2;
+    EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "quality");
+    o = options;
+    o.projection = 9;
+    EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "projection");
+    o = options;
+    o.indirect = 9;
+    EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "indirect");
+    o = options;
+    o.shard_index = 3;
+    o.shard_count = 2;
+    EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "shard_index");
+    o = options;
+    o.struct_size = 0;
+    EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "struct_size");
+    o.struct_size = sizeof o + 8;
+    EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "struct_size");
+    EXPECT(rw_bake_run(NULL, &options, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "`scene` is NULL");
+    EXPECT(rw_bake_run(scene, &options, NULL, NULL, NULL), RW_INVALID_ARGUMENT, "`dir` is NULL");
+    struct stat st;
+    CHECK(stat(fresh, &st) != 0);
+
+    /* A bake of another scene is refused, to run and to open. */
+    rw_bake *bake = (rw_bake *)(uintptr_t)0x1;
+    EXPECT(rw_bake_run(other, &options, bake_dir, NULL, NULL), RW_BAKE, "differs");
+    EXPECT(rw_bake_open_with_scene(other, bake_dir, &bake), RW_BAKE, "differs");
+    EXPECT(rw_bake_open(NULL, &bake), RW_INVALID_ARGUMENT, "`dir` is NULL");
+    EXPECT(rw_bake_open(bake_dir, NULL), RW_INVALID_ARGUMENT, "`out` is NULL");
+    EXPECT(rw_bake_open("/nonexistent/bake", &bake), RW_IO, "/nonexistent/bake");
+    EXPECT(rw_bake_open(work, &bake), RW_IO, "manifest.json");
+    CHECK(bake == (rw_bake *)(uintptr_t)0x1);
+    rw_bake_free(NULL);
+
+    /* A cancelled bake stops, cannot be opened, and resumes to completion. */
+    char cancelled[1024];
+    snprintf(cancelled, sizeof cancelled, "%s/cancelled", work);
+    rw_bake_options tiny = options;
+    tiny.quality = 0.1f;
+    tiny.size = 16;
+    tiny.spp = 1;
+    int calls = 0;
+    EXPECT(rw_bake_run(scene, &tiny, cancelled, stop_at_once, &calls), RW_CANCELLED, "cancelled");
+    CHECK(calls == 1);
+    EXPECT(rw_bake_open(cancelled, &bake), RW_BAKE, "not complete");
+    tiny.spp = 2;
+    EXPECT(rw_bake_run(scene, &tiny, cancelled, NULL, NULL), RW_BAKE, "other settings");
+    tiny.spp = 1;
+    EXPECT(rw_bake_run(scene, &tiny, cancelled, NULL, NULL), RW_OK, NULL);
+    EXPECT(rw_bake_open(cancelled, &bake), RW_OK, NULL);
+    rw_bake_free(bake);
+
+    /* Synthesis. */
+    EXPECT(rw_bake_open_with_scene(scene, bake_dir, &bake), RW_OK, NULL);
+
+    /* The plan. */
+    size_t views = 0, time_count = 0;
+    float position[3] = {-1, -1, -1}, times[2] = {-1, -1};
+    EXPECT(rw_bake_view_count(NULL, &views), RW_INVALID_ARGUMENT, "`bake` is NULL");
+    EXPECT(rw_bake_view_count(bake, NULL), RW_INVALID_ARGUMENT, "`count` is NULL");
+    EXPECT(rw_bake_view_count(bake, &views), RW_OK, NULL);
+    CHECK(views >= 2);
+    EXPECT(rw_bake_view(bake, views, position, times, 2, &time_count), RW_INVALID_ARGUMENT, "not below");
+    EXPECT(rw_bake_view(bake, 0, NULL, times, 2, &time_count), RW_INVALID_ARGUMENT, "`position` is NULL");
+    EXPECT(rw_bake_view(bake, 0, position, times, 2, NULL), RW_INVALID_ARGUMENT, "`time_count` is NULL");
+    CHECK(untouched(position, 3) && untouched(times, 2) && time_count == 0);
+    EXPECT(rw_bake_view(bake, 0, position, NULL, 0, &time_count), RW_OK, NULL);
+    CHECK(time_count >= 1 && position[1] == 273.0f);
+    EXPECT(rw_bake_view(bake, 0, position, times, 1, &time_count), RW_OK, NULL);
+    CHECK(times[0] == 0.0f && times[1] == -1.0f);
+    rw_scene_free(other);
+    fill(rgb, W * H * 3);
+    fill(distance, W * H);
+    EXPECT(rw_synth(NULL, &view, 0.5f, W, H, rgb, distance), RW_INVALID_ARGUMENT, "`bake` is NULL");
+    EXPECT(rw_synth(bake, NULL, 0.5f, W, H, rgb, distance), RW_INVALID_ARGUMENT, "`view` is NULL");
+    EXPECT(rw_synth(bake, &view, 0.5f, W, H, NULL, distance), RW_INVALID_ARGUMENT, "`rgb` is NULL");
+    EXPECT(rw_synth(bake, &view, 0.5f, 0, H, rgb, distance), RW_INVALID_ARGUMENT, "no pixels");
+    EXPECT(rw_synth(bake, &view, 0.5f, 1u << 20, 1u << 20, rgb, distance), RW_INVALID_ARGUMENT, "exceeds");
+    EXPECT(rw_synth(bake, &view, NAN, W, H, rgb, distance), RW_INVALID_ARGUMENT, "time");
+    EXPECT(rw_synth_options_default(NULL), RW_INVALID_ARGUMENT, "`options` is NULL");
+    rw_synth_options synth_defaults, so;
+    EXPECT(rw_synth_options_default(&synth_defaults), RW_OK, NULL);
+    CHECK(synth_defaults.bases == 4 && synth_defaults.fill == RW_FILL_BOTH &&
+          synth_defaults.time_interp == RW_TIME_INTERP_MOTION);
+    so = synth_defaults;
+    so.bases = 0;
+    EXPECT(rw_synth_with(bake, &view, 0.5f, W, H, &so, rgb, distance), RW_INVALID_ARGUMENT, "bases");
+    so = synth_defaults;
+    so.fill = 7;
+    EXPECT(rw_synth_with(bake, &view, 0.5f, W, H, &so, rgb, distance), RW_INVALID_ARGUMENT, "fill");
+    so = synth_defaults;
+    so.time_interp = 7;
+    EXPECT(rw_synth_with(bake, &view, 0.5f, W, H, &so, rgb, distance), RW_INVALID_ARGUMENT, "time_interp");
+    so = synth_defaults;
+    so.blend = 7;
+    EXPECT(rw_synth_with(bake, &view, 0.5f, W, H, &so, rgb, distance), RW_INVALID_ARGUMENT, "blend");
+    so = synth_defaults;
+    so.tolerance = 1.5f;
+    EXPECT(rw_synth_with(bake, &view, 0.5f, W, H, &so, rgb, distance), RW_INVALID_ARGUMENT, "tolerance");
+    so = synth_defaults;
+    so.fill_reach = 70000;
+    EXPECT(rw_synth_with(bake, &view, 0.5f, W, H, &so, rgb, distance), RW_INVALID_ARGUMENT, "fill_reach");
+    so = synth_defaults;
+    so.reshade_samples = 0;
+    EXPECT(rw_synth_with(bake, &view, 0.5f, W, H, &so, rgb, distance), RW_INVALID_ARGUMENT, "reshade_samples");
+    so = synth_defaults;
+    so.base_memory_mib = UINT64_MAX;
+    EXPECT(rw_synth_with(bake, &view, 0.5f, W, H, &so, rgb, distance), RW_INVALID_ARGUMENT, "base_memory_mib");
+    CHECK(untouched(rgb, W * H * 3) && untouched(distance, W * H));
+    /* An older header's smaller struct: the rest keeps the defaults. */
+    so = synth_defaults;
+    so.struct_size = 8;
+    EXPECT(rw_synth_with(bake, &view, 0.5f, W, H, &so, rgb, NULL), RW_OK, NULL);
+    CHECK(!untouched(rgb, W * H * 3) && untouched(distance, W * H));
+    rw_bake_free(bake);
+
+    /* A panic inside the library becomes RW_PANIC, and the library goes on. */
+    EXPECT(rw_test_panic(NULL), RW_INVALID_ARGUMENT, "`message` is NULL");
+    EXPECT(rw_test_panic("forced for the test"), RW_PANIC, "forced for the test");
+    EXPECT(rw_scene_camera(scene, "main", &view), RW_OK, NULL);
+    rw_scene_free(scene);
+
+    printf("error_paths: %d checks, %d failed\n", checks, failures);
+    return failures ? 1 : 0;
+}

@@ -173,11 +173,13 @@ fn a_pinhole_frame_from_a_sphere_base_at_its_point_is_the_base_resampled() {
     };
     let (frame, stats) = synth.frame(&camera, 0.0, &opts).unwrap();
     assert_eq!(stats.holes, 0);
-    // Resampling: the base pixel under each frame pixel's centre ray. A
-    // splat is the parallelogram its neighbours span, which differs from
-    // the base pixel's own outline only in slivers along its edges, where
-    // neighbouring splats overlap and average: a frame pixel holds the base
-    // pixel under its ray, or a mean of base pixels next to it.
+    // Resampling: each frame pixel averages the base pixels whose
+    // footprints (the parallelograms their neighbours span) overlap it, by
+    // the area they cover. Frame pixels here are about 1.1 base pixels
+    // across and the sphere's pixels are sheared, so a footprint reaching
+    // into the pixel has its centre within two base pixels of the pixel's
+    // ray: a frame pixel holds the base pixel under its ray, or a mean of
+    // base pixels within two of it.
     let mut same = 0;
     for y in 0..camera.height {
         for x in 0..camera.width {
@@ -196,8 +198,8 @@ fn a_pinhole_frame_from_a_sphere_base_at_its_point_is_the_base_resampled() {
                 same += 1;
                 continue;
             }
-            let near: Vec<Vec3> = (-1..=1)
-                .flat_map(|dy| (-1..=1).map(move |dx| (dx, dy)))
+            let near: Vec<Vec3> = (-2..=2)
+                .flat_map(|dy| (-2..=2).map(move |dx| (dx, dy)))
                 .map(|(dx, dy)| pixel(dx, dy))
                 .collect();
             let lo = near.iter().fold(Vec3::INFINITY, |m, c| m.min(*c));

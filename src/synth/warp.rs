@@ -22,6 +22,8 @@ const MAX_WEIGHT: f32 = 1000.0;
 /// Longest side (in frame pixels) a splat may stretch to; beyond it a
 /// sample covers one pixel.
 const MAX_SPLAT: f32 = 64.0;
+/// Smallest share of a pixel a footprint's overlap counts for.
+const MIN_AREA: f32 = 1e-3;
 
 /// What a frame pixel has gathered: one cache line, so that a deposit
 /// touches one line.
@@ -47,6 +49,10 @@ pub struct Accum {
     /// How far (in pixels) background fill carried the value; 0 for a
     /// projected sample.
     pub reach: u16,
+    /// Whether a sample's footprint covers the pixel's centre: such a
+    /// sample decides the pixel's surface, and samples whose footprints
+    /// only overlap the pixel's edge join it only within the tolerance.
+    pub covered: bool,
 }
 
 impl Accum {
@@ -360,6 +366,12 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
                 let pass = &passes[i as usize];
                 splat_tile(target, pass, t as usize, settings, rows, y0, &mut scratch);
             }
+            // Overlap alone does not make a pixel seen: where no footprint
+            // covers its centre (a disocclusion's edge), it stays a hole
+            // for the fills rather than taking the foreground's edge.
+            for a in rows.iter_mut().filter(|a| !a.covered) {
+                *a = Accum::default();
+            }
         });
 }
 
@@ -547,7 +559,7 @@ fn splat_tile(
                 }
                 _ => Vec2::ZERO,
             };
-            let mut deposit = |px: i64, py: i64| {
+            let mut deposit = |px: i64, py: i64, area: f32, covers: bool| {
                 if px >= 0 && py >= y0 as i64 && px < fw as i64 && py < y1 as i64 {
                     let a = &mut rows[((py as u32 - y0) * fw + px as u32) as usize];
                     let centre = Vec2::new(px as f32 + 0.5, py as f32 + 0.5);
@@ -556,54 +568,61 @@ fn splat_tile(
                     } else {
                         (s.z + grad.dot(centre - s.px)).clamp(0.5 * s.z, 2.0 * s.z)
                     };
-                    sample.deposit(a, z, eps, settings.blend);
+                    sample.deposit(a, z, area, covers, eps, settings.blend);
                 }
             };
-            // Every sample lands on the pixel under it, so that where base
-            // pixels are finer than the frame's, each frame pixel averages
-            // all of those it covers.
             let (fx, fy) = (floor(s.px.x), floor(s.px.y));
-            deposit(fx, fy);
             if !settings.splat {
+                deposit(fx, fy, 1.0, true);
                 continue;
             }
             let short = |e: Vec2| e.abs().max_element() <= MAX_SPLAT;
-            // The splat is centred on the pixel's projection, so that a
+            // The footprint is centred on the pixel's projection, so that a
             // base pixel projected into its own camera covers exactly its
             // own pixel; a side without an agreeing neighbour is one pixel.
             let e1 = n1.map(|n| n.0).filter(|e| short(*e)).unwrap_or(Vec2::X);
             let e2 = n2.map(|n| n.0).filter(|e| short(*e)).unwrap_or(Vec2::Y);
-            let origin = s.px - 0.5 * (e1 + e2);
             let det = e1.perp_dot(e2);
             if det.abs() < 1e-6 {
+                deposit(fx, fy, 1.0, true);
                 continue;
             }
-            let corners = [origin, origin + e1, origin + e2, origin + e1 + e2];
-            let lo = corners
-                .iter()
-                .fold(Vec2::splat(f32::INFINITY), |m, c| m.min(*c));
-            let hi = corners
-                .iter()
-                .fold(Vec2::splat(f32::NEG_INFINITY), |m, c| m.max(*c));
-            let (ya, yb) = (
-                ceil(lo.y - 0.5).max(y0 as i64),
-                floor(hi.y - 0.5).min(y1 as i64 - 1),
-            );
-            let (xa, xb) = (
-                ceil(lo.x - 0.5).max(0),
-                floor(hi.x - 0.5).min(fw as i64 - 1),
-            );
+            let origin = s.px - 0.5 * (e1 + e2);
+            let extent = e1.abs() + e2.abs();
+            let (lo, hi) = (s.px - 0.5 * extent, s.px + 0.5 * extent);
+            // Area weights: each frame pixel averages the base pixels over
+            // it by how much of it they cover (a box filter of the base's
+            // pixels, as the reference's pixels integrate the scene), not
+            // by whose centres fall in it, which shifts edges by up to half
+            // a pixel. The overlap is that of an axis-aligned box with the
+            // footprint's area and the proportions of its bounds.
+            let half = 0.5 * extent * (det.abs() / (extent.x * extent.y)).sqrt();
+            let (bl, bh) = (s.px - half, s.px + half);
+            let overlap =
+                |p: i64, l: f32, h: f32| (h.min(p as f32 + 1.0) - l.max(p as f32)).max(0.0);
+            let (ya, yb) = (floor(lo.y).max(y0 as i64), ceil(hi.y).min(y1 as i64) - 1);
+            let (xa, xb) = (floor(lo.x).max(0), ceil(hi.x).min(fw as i64) - 1);
             let inv = 1.0 / det;
             for py in ya..=yb {
+                let oy = overlap(py, bl.y, bh.y);
                 for px in xa..=xb {
                     let c = Vec2::new(px as f32 + 0.5, py as f32 + 0.5) - origin;
                     // Parallelogram coordinates, half-open so that each
-                    // pixel centre belongs to one splat of a surface; the
-                    // pixel under the sample has it already.
+                    // pixel centre is covered by one footprint of a surface.
                     let a = c.perp_dot(e2) * inv;
                     let b = e1.perp_dot(c) * inv;
-                    if (0.0..1.0).contains(&a) && (0.0..1.0).contains(&b) && (px, py) != (fx, fy) {
-                        deposit(px, py);
+                    // The pixel under the sample has it whole where the
+                    // footprint is smaller than a pixel.
+                    let covers =
+                        (0.0..1.0).contains(&a) && (0.0..1.0).contains(&b) || (px, py) == (fx, fy);
+                    let area = oy * overlap(px, bl.x, bh.x);
+                    // Slivers below the rounding of positions are no
+                    // overlap; a covering footprint's sample counts even
+                    // where the box approximating it misses the pixel.
+                    if covers {
+                        deposit(px, py, area.max(MIN_AREA), true);
+                    } else if area > MIN_AREA {
+                        deposit(px, py, area, false);
                     }
                 }
             }
@@ -647,10 +666,24 @@ struct Sample {
 }
 
 impl Sample {
+    /// Adds the sample, weighted by the share `area` of the pixel its
+    /// footprint overlaps. A sample whose footprint `covers` the pixel's
+    /// centre replaces what only overlapping samples put there unless it
+    /// agrees with it in depth; one that merely overlaps never displaces a
+    /// covering one (so foreground edges do not spill over the
+    /// background) and joins it only within the tolerance.
     #[inline]
-    fn deposit(&self, a: &mut Accum, z: f32, eps: f32, blend: Blend) {
-        let w = self.weight;
-        if a.is_empty() || z < a.z * (1.0 - eps) {
+    fn deposit(&self, a: &mut Accum, z: f32, area: f32, covers: bool, eps: f32, blend: Blend) {
+        let w = self.weight * area;
+        let nearer = z < a.z * (1.0 - eps);
+        let within = !nearer && z <= a.z * (1.0 + eps);
+        let replace = a.is_empty()
+            || match (covers, a.covered) {
+                (true, false) => !within,
+                (false, true) => false,
+                _ => nearer,
+            };
+        if replace {
             *a = Accum {
                 z,
                 w,
@@ -662,13 +695,15 @@ impl Sample {
                 object: self.object,
                 primitive: self.primitive,
                 reach: 0,
+                covered: covers,
             };
-        } else if z <= a.z * (1.0 + eps) && blend == Blend::Average {
+        } else if within && blend == Blend::Average {
             a.w += w;
             a.radiance += self.radiance * w;
             a.diffuse_direct += self.diffuse_direct * w;
             a.alpha += self.alpha * w;
             a.z = a.z.min(z);
+            a.covered |= covers;
             if w > a.best {
                 a.best = w;
                 a.point = self.point;

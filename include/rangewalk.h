@@ -211,6 +211,9 @@ typedef struct {
   uint64_t seed;
   // Memory for the bases each synthesizing thread keeps, in MiB.
   uint64_t base_memory_mib;
+  // Subpixels per side each frame pixel is synthesized from, 1 to 4
+  // (1: none).
+  uint32_t supersample;
 } rw_synth_options;
 
 #ifdef __cplusplus

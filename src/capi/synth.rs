@@ -5,7 +5,9 @@ use super::bake::rw_bake;
 use super::error::{guard, Failure};
 use super::status::rw_status;
 use super::view::rw_view;
-use crate::synth::{Blend, Fill, Kept, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET};
+use crate::synth::{
+    Blend, Fill, Kept, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET, MAX_SUPERSAMPLE,
+};
 
 /// Hole filling (`rangewalk synth --fill`).
 #[repr(u32)]
@@ -59,6 +61,9 @@ pub struct rw_synth_options {
     pub seed: u64,
     /// Memory for the bases each synthesizing thread keeps, in MiB.
     pub base_memory_mib: u64,
+    /// Subpixels per side each frame pixel is synthesized from, 1 to 4
+    /// (1: none).
+    pub supersample: u32,
 }
 
 impl Default for rw_synth_options {
@@ -88,6 +93,7 @@ impl Default for rw_synth_options {
             light_rays: o.light_rays,
             seed: o.seed,
             base_memory_mib: (DEFAULT_BUDGET >> 20) as u64,
+            supersample: o.supersample,
         }
     }
 }
@@ -147,7 +153,15 @@ impl rw_synth_options {
                     "overflows",
                 )
             })?;
+        if !(1..=MAX_SUPERSAMPLE).contains(&self.supersample) {
+            return Err(bad(
+                "supersample",
+                self.supersample.to_string(),
+                &format!("must lie in 1..={MAX_SUPERSAMPLE}"),
+            ));
+        }
         let options = Options {
+            supersample: self.supersample,
             fill,
             time_interp,
             bases: self.bases as usize,

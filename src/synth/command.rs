@@ -50,6 +50,11 @@ pub struct SynthOptions {
     pub light_rays: u32,
     #[arg(long, default_value_t = Options::default().seed)]
     pub seed: u64,
+    /// Subpixels per side each frame pixel is synthesized from (1: none),
+    /// so that pixels a silhouette crosses show each surface by its share.
+    #[arg(long, default_value_t = Options::default().supersample,
+          value_parser = clap::value_parser!(u32).range(1..=crate::synth::MAX_SUPERSAMPLE as i64))]
+    pub supersample: u32,
     /// Memory for bases held between frames, in MiB.
     #[arg(long, default_value_t = DEFAULT_BUDGET >> 20)]
     pub base_memory: usize,
@@ -80,6 +85,7 @@ impl SynthOptions {
             reshade_samples: self.reshade_samples,
             light_rays: self.light_rays,
             seed: self.seed,
+            supersample: self.supersample,
         })
     }
 

@@ -75,6 +75,13 @@ pub struct Options {
     /// Rays per side of a pixel at or beside a light ([`lights`]); 0: none.
     pub light_rays: u32,
     pub seed: u64,
+    /// Side of the grid of subpixels each frame pixel is synthesized as
+    /// and then averaged from (1: none). A z-buffer gives each of its
+    /// pixels one surface, so a pixel a silhouette crosses shows the
+    /// nearer surface whole where the reference shows both by the share
+    /// each covers: thin objects thicken and close the gaps between them.
+    /// Subpixels resolve that share.
+    pub supersample: u32,
 }
 
 impl Default for Options {
@@ -89,6 +96,7 @@ impl Default for Options {
             reshade_samples: 4,
             light_rays: 8,
             seed: 1,
+            supersample: 2,
         }
     }
 }
@@ -225,6 +233,49 @@ impl<'a> Synthesizer<'a> {
         t: f32,
         opts: &Options,
     ) -> Result<(RangeImage, FrameStats)> {
+        let k = opts.supersample;
+        ensure!(
+            (1..=MAX_SUPERSAMPLE).contains(&k),
+            "supersampling {k} must lie in 1..={MAX_SUPERSAMPLE}"
+        );
+        if k == 1 {
+            let (image, stats, _) = self.subpixels(camera, t, opts)?;
+            return Ok((image, stats));
+        }
+        let fine_camera = Camera {
+            width: camera.width * k,
+            height: camera.height * k,
+            ..*camera
+        };
+        // Per-pixel counts keep their meaning per frame pixel: a
+        // background fill reaches as far, light rims and re-shading trace
+        // about as many rays per frame pixel.
+        let fine = Options {
+            fill_reach: opts.fill_reach.saturating_mul(k as u16),
+            light_rays: opts.light_rays.div_ceil(k),
+            reshade_samples: opts.reshade_samples.div_ceil(k * k),
+            ..*opts
+        };
+        let (image, mut stats, seen) = self.subpixels(&fine_camera, t, &fine)?;
+        let start = Instant::now();
+        let (image, holes) = downsample(&image, &seen, camera, k);
+        let per_pixel = |n: usize| n.div_ceil((k * k) as usize);
+        stats.holes = holes;
+        stats.filled = per_pixel(stats.filled);
+        stats.mirror_misses = per_pixel(stats.mirror_misses);
+        stats.light_pixels = per_pixel(stats.light_pixels);
+        stats.seconds += start.elapsed().as_secs_f64();
+        Ok((image, stats))
+    }
+
+    /// The frame at the camera's own resolution, with which of its pixels
+    /// some sample or fill reached.
+    fn subpixels(
+        &mut self,
+        camera: &Camera,
+        t: f32,
+        opts: &Options,
+    ) -> Result<(RangeImage, FrameStats, Vec<bool>)> {
         ensure!(t.is_finite(), "frame time {t} is not finite");
         ensure!(
             opts.tolerance > 0.0 && opts.tolerance < 1.0,
@@ -370,7 +421,8 @@ impl<'a> Synthesizer<'a> {
                 bases.len()
             ),
         });
-        stats.holes = pixels.iter().filter(|a| a.is_empty()).count();
+        let seen: Vec<bool> = pixels.par_iter().map(|a| !a.is_empty()).collect();
+        stats.holes = seen.iter().filter(|s| !**s).count();
         write_pixels(self.scene, &poses_t, &pixels, &mut image);
         if opts.time_interp == TimeInterp::Reshade {
             let scene = self.scene;
@@ -406,7 +458,7 @@ impl<'a> Synthesizer<'a> {
         }
         stats.load_seconds = self.cache.load_seconds - load_before;
         stats.seconds = start.elapsed().as_secs_f64();
-        Ok((image, stats))
+        Ok((image, stats, seen))
     }
 
     /// The scene's ray engine (built on first use) posed at `t`.
@@ -424,6 +476,66 @@ impl<'a> Synthesizer<'a> {
         }
         Ok(&mut **engine)
     }
+}
+
+/// The most subpixels per side a frame pixel may be synthesized from.
+pub const MAX_SUPERSAMPLE: u32 = 4;
+
+/// `camera`'s frame from `fine`, synthesized at `k` × `k` subpixels a
+/// pixel: radiance is the mean of the subpixels some sample reached
+/// (`seen`), the surface (distance, ids, normal) that of the seen subpixel
+/// nearest the pixel's centre; a pixel none reached is a hole. Returns the
+/// frame and its holes.
+fn downsample(fine: &RangeImage, seen: &[bool], camera: &Camera, k: u32) -> (RangeImage, usize) {
+    let mut image = RangeImage::empty(RangeMeta {
+        camera: *camera,
+        ..fine.meta.clone()
+    });
+    let (w, k) = (camera.width as usize, k as usize);
+    let fw = w * k;
+    // Subpixel offsets, nearest the pixel's centre first.
+    let mut order: Vec<(usize, usize)> = (0..k * k).map(|i| (i % k, i / k)).collect();
+    let centre = (k as f32 - 1.0) * 0.5;
+    order.sort_by(|a, b| {
+        let d = |p: &(usize, usize)| (p.0 as f32 - centre).powi(2) + (p.1 as f32 - centre).powi(2);
+        d(a).total_cmp(&d(b))
+    });
+    let holes = image
+        .radiance
+        .par_iter_mut()
+        .zip(image.distance.par_iter_mut())
+        .zip(image.object_id.par_iter_mut())
+        .zip(image.primitive_id.par_iter_mut())
+        .zip(image.normal.par_iter_mut())
+        .enumerate()
+        .map(
+            |(i, ((((radiance, distance), object), primitive), normal))| {
+                let (x, y) = (i % w, i / w);
+                let at = |(dx, dy): (usize, usize)| (y * k + dy) * fw + x * k + dx;
+                let (mut sum, mut n) = (Vec3::ZERO, 0u32);
+                for &o in &order {
+                    let j = at(o);
+                    if seen[j] {
+                        sum += fine.radiance[j];
+                        n += 1;
+                    }
+                }
+                let Some(&first) = order.iter().find(|&&o| seen[at(o)]) else {
+                    return 1;
+                };
+                let j = at(first);
+                *radiance = sum / n as f32;
+                (*distance, *object, *primitive, *normal) = (
+                    fine.distance[j],
+                    fine.object_id[j],
+                    fine.primitive_id[j],
+                    fine.normal[j],
+                );
+                0
+            },
+        )
+        .sum();
+    (image, holes)
 }
 
 /// `pcomb -s (1−α) A -s α B`, where `α` is the time fraction of the views

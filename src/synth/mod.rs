@@ -258,7 +258,8 @@ impl<'a> Synthesizer<'a> {
         };
         let (image, mut stats, seen) = self.subpixels(&fine_camera, t, &fine)?;
         let start = Instant::now();
-        let (image, holes) = downsample(&image, &seen, camera, k);
+        let poses = self.scene.at(t);
+        let (image, holes) = downsample(self.scene, &poses, &image, &seen, camera, k);
         let per_pixel = |n: usize| n.div_ceil((k * k) as usize);
         stats.holes = holes;
         stats.filled = per_pixel(stats.filled);
@@ -483,10 +484,18 @@ pub const MAX_SUPERSAMPLE: u32 = 4;
 
 /// `camera`'s frame from `fine`, synthesized at `k` × `k` subpixels a
 /// pixel: radiance is the mean of the subpixels some sample reached
-/// (`seen`), the surface (distance, ids, normal) that of the seen subpixel
-/// nearest the pixel's centre; a pixel none reached is a hole. Returns the
-/// frame and its holes.
-fn downsample(fine: &RangeImage, seen: &[bool], camera: &Camera, k: u32) -> (RangeImage, usize) {
+/// (`seen`), the surface (ids, normal) that of the seen subpixel nearest
+/// the pixel's centre, and the distance where the pixel's centre ray meets
+/// that surface's triangle (at `poses`), as a render's would be; a pixel
+/// none reached is a hole. Returns the frame and its holes.
+fn downsample(
+    scene: &Scene,
+    poses: &[Affine3A],
+    fine: &RangeImage,
+    seen: &[bool],
+    camera: &Camera,
+    k: u32,
+) -> (RangeImage, usize) {
     let mut image = RangeImage::empty(RangeMeta {
         camera: *camera,
         ..fine.meta.clone()
@@ -531,11 +540,39 @@ fn downsample(fine: &RangeImage, seen: &[bool], camera: &Camera, k: u32) -> (Ran
                     fine.primitive_id[j],
                     fine.normal[j],
                 );
+                if let Some(d) = centre_distance(scene, poses, camera, x, y, *object, *primitive) {
+                    *distance = d;
+                }
                 0
             },
         )
         .sum();
     (image, holes)
+}
+
+/// Distance along pixel `(x, y)`'s centre ray to the plane of `object`'s
+/// triangle `primitive` posed at `poses`; `None` for sky or where the ray
+/// runs along the plane or meets it behind the camera.
+fn centre_distance(
+    scene: &Scene,
+    poses: &[Affine3A],
+    camera: &Camera,
+    x: usize,
+    y: usize,
+    object: u32,
+    primitive: u32,
+) -> Option<f32> {
+    let mesh = &scene.objects.get(object as usize)?.mesh;
+    let &[i, j, l] = mesh.triangles.get(primitive as usize)?;
+    let pose = poses[object as usize];
+    let p = &mesh.positions;
+    let a = pose.transform_point3(p[i as usize]);
+    let n =
+        (pose.transform_point3(p[j as usize]) - a).cross(pose.transform_point3(p[l as usize]) - a);
+    let ray = camera.ray(x as f32 + 0.5, y as f32 + 0.5)?;
+    let along = ray.dir.dot(n);
+    let d = (a - ray.origin).dot(n) / along;
+    (along.abs() > 1e-12 * n.length() && d > 0.0 && d.is_finite()).then_some(d)
 }
 
 /// `pcomb -s (1−α) A -s α B`, where `α` is the time fraction of the views

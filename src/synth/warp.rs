@@ -198,6 +198,15 @@ impl Target {
         .map(|px| (px, d.length()))
     }
 
+    /// About how many frame pixels a base pixel's side spans, seen at
+    /// distance `z` from the frame's camera: the base pixel's angle times
+    /// its distance from the base's camera, over `z`, over the angle of a
+    /// frame pixel (each at its image's centre).
+    fn pixel_side(&self, base: &Base, point: Vec3, z: f32) -> f32 {
+        let seen = pixel_angle(&base.camera) * point.distance(base.camera.position) / z;
+        (seen / pixel_angle(&self.camera)).max(1e-3)
+    }
+
     /// Pixel position of a direction (a point at infinity).
     #[inline]
     pub fn direction(&self, d: Vec3) -> Option<Vec2> {
@@ -299,6 +308,18 @@ impl Target {
     }
 }
 
+/// The angle a camera's centre pixel subtends (every pixel's, for the
+/// equal-area sphere).
+fn pixel_angle(c: &Camera) -> f32 {
+    match c.projection {
+        Projection::Perspective { vfov_deg } => {
+            2.0 * (vfov_deg.to_radians() * 0.5).tan() / c.height as f32
+        }
+        Projection::Fisheye => std::f32::consts::PI / c.width.min(c.height) as f32,
+        Projection::Sphere => (4.0 * std::f32::consts::PI).sqrt() / c.height as f32,
+    }
+}
+
 /// A projected base pixel.
 #[derive(Clone, Copy)]
 struct Projected {
@@ -393,16 +414,20 @@ fn splat_tile(
     let fw = target.camera.width;
     let band_rows = rows.len() as u32 / fw;
     let y1 = y0 + band_rows;
+    // The tile's pixels with a ring of their neighbours: a footprint's side
+    // comes from the neighbour after the pixel or, where that one lies
+    // across a depth break, from the one before it.
+    let (xs, ys) = (tile.x0.saturating_sub(1), tile.y0.saturating_sub(1));
     let x_end = (tile.x0 + TILE + 1).min(bw);
     let y_end = (tile.y0 + TILE + 1).min(bh);
-    let sw = x_end - tile.x0;
+    let sw = x_end - xs;
     let Scratch {
         projected: scratch,
         layers,
     } = scratch;
     scratch.clear();
-    for y in tile.y0..y_end {
-        for x in tile.x0..x_end {
+    for y in ys..y_end {
+        for x in xs..x_end {
             let k = (y * bw + x) as usize;
             let p = base.points[k];
             let o = base.object[k];
@@ -479,7 +504,7 @@ fn splat_tile(
     let cam = target.camera.position;
     for y in tile.y0..(tile.y0 + TILE).min(bh) {
         for x in tile.x0..(tile.x0 + TILE).min(bw) {
-            let li = ((y - tile.y0) * sw + (x - tile.x0)) as usize;
+            let li = ((y - ys) * sw + (x - xs)) as usize;
             let Some(s) = scratch[li] else { continue };
             let k = (y * bw + x) as usize;
             let shared = all_shared || pass.shared(k);
@@ -535,15 +560,26 @@ fn splat_tile(
                 object: base.object[k],
                 primitive: base.primitive[k],
             };
-            // Offset and depth change to an agreeing neighbour.
-            let neighbour = |dx: u32, dy: u32| -> Option<(Vec2, f32)> {
-                if x + dx >= x_end || y + dy >= y_end {
-                    return None;
-                }
-                let n = scratch[li + (dy * sw + dx) as usize]?;
-                agrees(&s, &n).then_some((n.px - s.px, n.z - s.z))
+            // Offset and depth change to an agreeing neighbour, `d` pixels
+            // along the base's rows (`row`) or columns, after the pixel or
+            // else (negated) before it.
+            let neighbour = |row: bool| -> Option<(Vec2, f32)> {
+                let step = |d: i64| -> Option<(Vec2, f32)> {
+                    let (nx, ny) = if row {
+                        (x as i64 + d, y as i64)
+                    } else {
+                        (x as i64, y as i64 + d)
+                    };
+                    if nx < xs as i64 || ny < ys as i64 || nx >= x_end as i64 || ny >= y_end as i64
+                    {
+                        return None;
+                    }
+                    let n = scratch[((ny as u32 - ys) * sw + (nx as u32 - xs)) as usize]?;
+                    agrees(&s, &n).then_some(((n.px - s.px) * d as f32, (n.z - s.z) * d as f32))
+                };
+                step(1).or_else(|| step(-1))
             };
-            let (n1, n2) = (neighbour(1, 0), neighbour(0, 1));
+            let (n1, n2) = (neighbour(true), neighbour(false));
             // The depth gradient across the frame, so that the z-test
             // compares depths at the pixel centre: a surface seen at a
             // grazing angle changes depth by more than the tolerance
@@ -579,9 +615,28 @@ fn splat_tile(
             let short = |e: Vec2| e.abs().max_element() <= MAX_SPLAT;
             // The footprint is centred on the pixel's projection, so that a
             // base pixel projected into its own camera covers exactly its
-            // own pixel; a side without an agreeing neighbour is one pixel.
-            let e1 = n1.map(|n| n.0).filter(|e| short(*e)).unwrap_or(Vec2::X);
-            let e2 = n2.map(|n| n.0).filter(|e| short(*e)).unwrap_or(Vec2::Y);
+            // own pixel. A side with no agreeing neighbour on either hand
+            // (a sliver one base pixel wide) is the other side turned a
+            // quarter, or, for a lone pixel, the base pixel's own size:
+            // a frame pixel there would widen every thin foreground object
+            // over the gaps beside it.
+            let (e1, e2) = match (
+                n1.map(|n| n.0).filter(|e| short(*e)),
+                n2.map(|n| n.0).filter(|e| short(*e)),
+            ) {
+                (Some(a), Some(b)) => (a, b),
+                (Some(a), None) => (a, a.perp()),
+                (None, Some(b)) => (-b.perp(), b),
+                (None, None) => {
+                    let side = if s.sky {
+                        target.pixel_side(base, base.camera.position + s.point, 1.0)
+                    } else {
+                        target.pixel_side(base, base.points[k], s.z)
+                    };
+                    let side = side.min(MAX_SPLAT);
+                    (Vec2::X * side, Vec2::Y * side)
+                }
+            };
             let det = e1.perp_dot(e2);
             if det.abs() < 1e-6 {
                 deposit(fx, fy, 1.0, true);

@@ -3,7 +3,8 @@
 //! bases are baked once (1 sample per pixel: synthesis does not care what
 //! the pixels hold) into a temporary folder and held in memory, so the
 //! figure is frames per second of synthesis alone, as a walk-through sees
-//! it after its bases are loaded.
+//! it after its bases are loaded; each without subpixels and at the
+//! default 2 × 2 a pixel.
 
 use std::path::PathBuf;
 
@@ -78,17 +79,22 @@ fn synth(c: &mut Criterion) {
             (8, 4, 0.5, TimeInterp::Motion),
         ] {
             let camera = walk.at(0.5).perspective(FRAME, FRAME).expect("camera");
-            let options = Options {
-                bases: views,
-                time_interp: interp,
-                ..Options::default()
-            };
-            // Load the bases before timing.
-            synth.frame(&camera, t, &options).expect("frame");
-            let id = format!("{images}-images-{views}-views-{interp:?}").to_lowercase();
-            group.bench_function(BenchmarkId::from_parameter(id), |b| {
-                b.iter(|| synth.frame(&camera, t, &options).expect("frame"))
-            });
+            // Without subpixels and at the default 2 x 2.
+            for supersample in [1, 2] {
+                let options = Options {
+                    bases: views,
+                    time_interp: interp,
+                    supersample,
+                    ..Options::default()
+                };
+                // Load the bases before timing.
+                synth.frame(&camera, t, &options).expect("frame");
+                let id = format!("{images}-images-{views}-views-{interp:?}-ss{supersample}")
+                    .to_lowercase();
+                group.bench_function(BenchmarkId::from_parameter(id), |b| {
+                    b.iter(|| synth.frame(&camera, t, &options).expect("frame"))
+                });
+            }
         }
         group.finish();
     }

@@ -212,7 +212,7 @@ typedef struct {
   // Memory for the bases each synthesizing thread keeps, in MiB.
   uint64_t base_memory_mib;
   // Subpixels per side each frame pixel is synthesized from, 1 to 4
-  // (1: none).
+  // (1: none); only the splatting fills use them.
   uint32_t supersample;
 } rw_synth_options;
 

@@ -62,7 +62,7 @@ pub struct rw_synth_options {
     /// Memory for the bases each synthesizing thread keeps, in MiB.
     pub base_memory_mib: u64,
     /// Subpixels per side each frame pixel is synthesized from, 1 to 4
-    /// (1: none).
+    /// (1: none); only the splatting fills use them.
     pub supersample: u32,
 }
 

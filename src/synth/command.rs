@@ -51,7 +51,8 @@ pub struct SynthOptions {
     #[arg(long, default_value_t = Options::default().seed)]
     pub seed: u64,
     /// Subpixels per side each frame pixel is synthesized from (1: none),
-    /// so that pixels a silhouette crosses show each surface by its share.
+    /// so that pixels a silhouette crosses show each surface by its share
+    /// (with --fill foreground or both, whose splats cover subpixels).
     #[arg(long, default_value_t = Options::default().supersample,
           value_parser = clap::value_parser!(u32).range(1..=crate::synth::MAX_SUPERSAMPLE as i64))]
     pub supersample: u32,

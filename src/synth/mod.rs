@@ -80,7 +80,8 @@ pub struct Options {
     /// pixels one surface, so a pixel a silhouette crosses shows the
     /// nearer surface whole where the reference shows both by the share
     /// each covers: thin objects thicken and close the gaps between them.
-    /// Subpixels resolve that share.
+    /// Subpixels resolve that share. Only splatting fills (`foreground`,
+    /// `both`) use them.
     pub supersample: u32,
 }
 
@@ -233,11 +234,16 @@ impl<'a> Synthesizer<'a> {
         t: f32,
         opts: &Options,
     ) -> Result<(RangeImage, FrameStats)> {
-        let k = opts.supersample;
         ensure!(
-            (1..=MAX_SUPERSAMPLE).contains(&k),
-            "supersampling {k} must lie in 1..={MAX_SUPERSAMPLE}"
+            (1..=MAX_SUPERSAMPLE).contains(&opts.supersample),
+            "supersampling {} must lie in 1..={MAX_SUPERSAMPLE}",
+            opts.supersample
         );
+        // Without splats a sample lands on one subpixel: subpixels would
+        // only thin the samples out, and a background fill would give most
+        // of them the farther surface beside them.
+        let splat = matches!(opts.fill, Fill::Foreground | Fill::Both);
+        let k = if splat { opts.supersample } else { 1 };
         if k == 1 {
             let (image, stats, _) = self.subpixels(camera, t, opts)?;
             return Ok((image, stats));

@@ -1,6 +1,7 @@
 //! Walk-through synthesis: a base reprojected into its own camera is the
 //! base, a pinhole frame from a sphere base at the same point is the base
-//! resampled, frames between bases match renders, motion compensation and
+//! resampled, subpixels resolve silhouettes, frames between bases match
+//! renders, motion compensation and
 //! re-shading remove the errors they are for, and bad input is refused.
 
 use std::path::{Path, PathBuf};
@@ -215,6 +216,71 @@ fn a_pinhole_frame_from_a_sphere_base_at_its_point_is_the_base_resampled() {
     assert!(
         same > 0,
         "{same} of {n} pixels are the base pixel under their ray"
+    );
+}
+
+#[test]
+fn subpixels_show_each_surface_by_its_share_where_a_silhouette_crosses_a_pixel() {
+    let scene = load(&scene_path("cornell-box"));
+    let camera = main_camera(&scene);
+    let dir = tempfile::tempdir().unwrap();
+    // A sphere base at the camera, finer than the frame's pixels: what a
+    // frame pixel shows is all in the base, so the error left on edges is
+    // resampling's.
+    let plan = Plan {
+        quality: 0.6,
+        views: vec![PlannedView {
+            position: camera.position,
+            times: vec![0.0],
+        }],
+        light_times: vec![0.0],
+        ..Plan::default()
+    };
+    let baked = bake_into(&scene, dir.path(), &settings(512, 8), plan);
+    let reference = path_traced(&scene, &camera, 0.0, 256);
+    let (w, h) = (camera.width as i64, camera.height as i64);
+    let id =
+        |x: i64, y: i64| reference.object_id[(y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize];
+    // Pixels beside a silhouette (a neighbour shows another object), away
+    // from the light, whose rim is traced rather than resampled.
+    let mut e = engine(&scene, 0.0);
+    let lit = rangewalk::eval::synthesis::emitter_free(&scene, e.as_mut(), &camera, 0.0)
+        .unwrap()
+        .expect("the light is in view");
+    let edge: Vec<bool> = (0..w * h)
+        .map(|k| {
+            let (x, y) = (k % w, k / w);
+            lit[k as usize] && !(-1..=1).all(|dy| (-1..=1).all(|dx| id(x + dx, y + dy) == id(x, y)))
+        })
+        .collect();
+    assert!(
+        edge.iter().filter(|e| **e).count() > 100,
+        "the boxes' edges"
+    );
+    let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
+    let mut errors = Vec::new();
+    for supersample in [1, 2] {
+        let opts = Options {
+            bases: 1,
+            supersample,
+            ..Options::default()
+        };
+        let (frame, stats) = synth.frame(&camera, 0.0, &opts).unwrap();
+        assert_eq!(stats.holes, 0, "{supersample}: fill both leaves no hole");
+        let e = metrics::compare(&frame.radiance, &reference.radiance, Some(&edge)).unwrap();
+        eprintln!(
+            "{supersample}x{supersample} subpixels: edge LRMS {:.4}",
+            e.lrms
+        );
+        errors.push(e.lrms);
+    }
+    // Without subpixels the nearer surface takes every pixel it reaches
+    // whole; with them each covers its share, as the render's pixels do.
+    assert!(
+        errors[1] < errors[0],
+        "edge pixels: {:.4} with 2x2 subpixels against {:.4} without",
+        errors[1],
+        errors[0]
     );
 }
 

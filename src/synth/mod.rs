@@ -254,23 +254,28 @@ impl<'a> Synthesizer<'a> {
             ..*camera
         };
         // Per-pixel counts keep their meaning per frame pixel: a
-        // background fill reaches as far, light rims and re-shading trace
-        // about as many rays per frame pixel.
+        // background fill reaches as far, re-shading traces about as many
+        // rays per frame pixel. Lights' rims are traced in the frame's own
+        // pixels, after: their rays resolve each pixel's share themselves.
         let fine = Options {
             fill_reach: opts.fill_reach.saturating_mul(k as u16),
-            light_rays: opts.light_rays.div_ceil(k),
+            light_rays: 0,
             reshade_samples: opts.reshade_samples.div_ceil(k * k),
             ..*opts
         };
         let (image, mut stats, seen) = self.subpixels(&fine_camera, t, &fine)?;
         let start = Instant::now();
         let poses = self.scene.at(t);
-        let (image, holes) = downsample(self.scene, &poses, &image, &seen, camera, k);
+        let (mut image, holes) = downsample(self.scene, &poses, &image, &seen, camera, k);
+        if opts.light_rays > 0 && lights::shows_a_light(self.scene, &image) {
+            let scene = self.scene;
+            let engine = &*self.engine_at(t)?;
+            stats.light_pixels = lights::trace(scene, engine, t, opts.light_rays, &mut image);
+        }
         let per_pixel = |n: usize| n.div_ceil((k * k) as usize);
         stats.holes = holes;
         stats.filled = per_pixel(stats.filled);
         stats.mirror_misses = per_pixel(stats.mirror_misses);
-        stats.light_pixels = per_pixel(stats.light_pixels);
         stats.seconds += start.elapsed().as_secs_f64();
         Ok((image, stats))
     }

@@ -498,7 +498,9 @@ pub const MAX_SUPERSAMPLE: u32 = 4;
 /// (`seen`), the surface (ids, normal) that of the seen subpixel nearest
 /// the pixel's centre, and the distance where the pixel's centre ray meets
 /// that surface's triangle (at `poses`), as a render's would be; a pixel
-/// none reached is a hole. Returns the frame and its holes.
+/// none reached is a hole. A pixel part of which shows a light takes the
+/// light's surface, so that tracing lights' rims ([`lights`]) finds it.
+/// Returns the frame and its holes.
 fn downsample(
     scene: &Scene,
     poses: &[Affine3A],
@@ -513,6 +515,10 @@ fn downsample(
     });
     let (w, k) = (camera.width as usize, k as usize);
     let fw = w * k;
+    let emissive: Vec<bool> = (0..scene.objects.len() as u32)
+        .map(|o| scene.material_of(o).emission.is_some())
+        .collect();
+    let emits = |id: u32| emissive.get(id as usize).copied().unwrap_or(false);
     // Subpixel offsets, nearest the pixel's centre first.
     let mut order: Vec<(usize, usize)> = (0..k * k).map(|i| (i % k, i / k)).collect();
     let centre = (k as f32 - 1.0) * 0.5;
@@ -540,7 +546,11 @@ fn downsample(
                         n += 1;
                     }
                 }
-                let Some(&first) = order.iter().find(|&&o| seen[at(o)]) else {
+                let Some(&first) = order
+                    .iter()
+                    .find(|&&o| seen[at(o)] && emits(fine.object_id[at(o)]))
+                    .or_else(|| order.iter().find(|&&o| seen[at(o)]))
+                else {
                     return 1;
                 };
                 let j = at(first);

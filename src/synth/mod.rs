@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use crate::accel::{self, InstancedEngine};
 use crate::bake::Bake;
 use crate::camera::Camera;
-use crate::image::{RangeImage, RangeMeta};
+use crate::image::{RangeImage, RangeMeta, NO_HIT};
 use crate::scene::{Scene, ViewSpace};
 
 pub mod base;
@@ -129,6 +129,9 @@ pub struct Synthesizer<'a> {
     /// Built on first use by re-shading or tracing lights' pixels, with
     /// the time it is posed at.
     engine: Option<(Box<dyn InstancedEngine>, f32)>,
+    /// The z-buffers of the last frame, kept so that the next one does not
+    /// fault in tens of megabytes of fresh pages (projection clears them).
+    buffers: [Vec<Accum>; 2],
 }
 
 /// Memory kept for bases by default: eight 2,600² bases fit.
@@ -141,6 +144,7 @@ pub const DEFAULT_BUDGET: usize = 1800 << 20;
 pub struct Kept {
     cache: BaseCache,
     engine: Option<(Box<dyn InstancedEngine>, f32)>,
+    buffers: [Vec<Accum>; 2],
 }
 
 impl Kept {
@@ -148,6 +152,7 @@ impl Kept {
         Self {
             cache: BaseCache::new(budget_bytes),
             engine: None,
+            buffers: Default::default(),
         }
     }
 
@@ -170,6 +175,7 @@ impl<'a> Synthesizer<'a> {
             bake,
             cache: kept.cache,
             engine: kept.engine,
+            buffers: kept.buffers,
         }
     }
 
@@ -178,6 +184,7 @@ impl<'a> Synthesizer<'a> {
         Kept {
             cache: self.cache,
             engine: self.engine,
+            buffers: self.buffers,
         }
     }
 
@@ -245,8 +252,8 @@ impl<'a> Synthesizer<'a> {
         let splat = matches!(opts.fill, Fill::Foreground | Fill::Both);
         let k = if splat { opts.supersample } else { 1 };
         if k == 1 {
-            let (image, stats, _) = self.subpixels(camera, t, opts)?;
-            return Ok((image, stats));
+            let (image, stats) = self.subpixels(camera, t, opts, true)?;
+            return Ok((image.expect("asked for"), stats));
         }
         let fine_camera = Camera {
             width: camera.width * k,
@@ -263,10 +270,43 @@ impl<'a> Synthesizer<'a> {
             reshade_samples: opts.reshade_samples.div_ceil(k * k),
             ..*opts
         };
-        let (image, mut stats, seen) = self.subpixels(&fine_camera, t, &fine)?;
+        // Re-shading works on the subpixels' surfaces; otherwise the frame
+        // is averaged from the z-buffer itself.
+        let reshade = opts.time_interp == TimeInterp::Reshade;
+        let (fine_image, mut stats) = self.subpixels(&fine_camera, t, &fine, reshade)?;
         let start = Instant::now();
         let poses = self.scene.at(t);
-        let (mut image, holes) = downsample(self.scene, &poses, &image, &seen, camera, k);
+        let buffer = &self.buffers[0];
+        let seen = |j: usize| !buffer[j].is_empty();
+        let (mut image, holes) = match &fine_image {
+            Some(f) => downsample(
+                self.scene,
+                &poses,
+                (camera, k, &f.meta),
+                seen,
+                |j| f.radiance[j],
+                |j| {
+                    (
+                        f.distance[j],
+                        f.object_id[j],
+                        f.primitive_id[j],
+                        f.normal[j],
+                    )
+                },
+            ),
+            None => {
+                let meta = self.frame_meta(&fine_camera, t, opts, stats.images.len());
+                let cam = camera.position;
+                downsample(
+                    self.scene,
+                    &poses,
+                    (camera, k, &meta),
+                    seen,
+                    |j| buffer[j].radiance / buffer[j].w,
+                    |j| surface(self.scene, &poses, cam, &buffer[j]),
+                )
+            }
+        };
         if opts.light_rays > 0 && lights::shows_a_light(self.scene, &image) {
             let scene = self.scene;
             let engine = &*self.engine_at(t)?;
@@ -280,14 +320,31 @@ impl<'a> Synthesizer<'a> {
         Ok((image, stats))
     }
 
-    /// The frame at the camera's own resolution, with which of its pixels
-    /// some sample or fill reached.
+    /// What a frame's range image says of how it was made.
+    fn frame_meta(&self, camera: &Camera, t: f32, opts: &Options, images: usize) -> RangeMeta {
+        RangeMeta {
+            camera: *camera,
+            time: t,
+            scene: format!(
+                "{} t={t} synthesized from {} ({:?}, fill {:?}, {} base image(s))",
+                self.scene.source.display(),
+                self.bake.dir.display(),
+                opts.time_interp,
+                opts.fill,
+                images
+            ),
+        }
+    }
+
+    /// The frame at the camera's own resolution, its z-buffer left in
+    /// `buffers[0]`; its range image only when `image` is asked for.
     fn subpixels(
         &mut self,
         camera: &Camera,
         t: f32,
         opts: &Options,
-    ) -> Result<(RangeImage, FrameStats, Vec<bool>)> {
+        image: bool,
+    ) -> Result<(Option<RangeImage>, FrameStats)> {
         ensure!(t.is_finite(), "frame time {t} is not finite");
         ensure!(
             opts.tolerance > 0.0 && opts.tolerance < 1.0,
@@ -353,10 +410,12 @@ impl<'a> Synthesizer<'a> {
                 stats.filled += fill::background(buffer, w, h, opts.fill_reach);
             }
         };
+        let [mut first, mut second] = std::mem::take(&mut self.buffers);
+        // Stale contents are cleared band by band as they are projected.
+        first.resize(n, Accum::default());
         let pixels: Vec<Accum> = if opts.time_interp == TimeInterp::Linear {
             // pinterp per time, then pcomb: two frames blended per pixel.
-            let mut first = vec![Accum::default(); n];
-            let mut second = vec![Accum::default(); n];
+            second.resize(n, Accum::default());
             let passes = |later: bool| -> Vec<Pass> {
                 bases
                     .iter()
@@ -377,10 +436,10 @@ impl<'a> Synthesizer<'a> {
             finish(&mut first, &mut stats);
             finish(&mut second, &mut stats);
             first
-                .par_iter()
+                .par_iter_mut()
                 .zip(&second)
-                .map(|(a, b)| blend_linear(a, b))
-                .collect()
+                .for_each(|(a, b)| *a = blend_linear(a, b));
+            first
         } else {
             // A sample of the other time still claims its pixel (what a
             // moving object uncovered) when nothing nearer in time does.
@@ -415,26 +474,18 @@ impl<'a> Synthesizer<'a> {
                     twin: twin_of(i),
                 })
                 .collect();
-            let mut buffer = vec![Accum::default(); n];
-            warp::warp(&target, &passes, &settings, &mut buffer);
-            finish(&mut buffer, &mut stats);
-            buffer
+            warp::warp(&target, &passes, &settings, &mut first);
+            finish(&mut first, &mut stats);
+            first
         };
-
-        let mut image = RangeImage::empty(RangeMeta {
-            camera: *camera,
-            time: t,
-            scene: format!(
-                "{} t={t} synthesized from {} ({:?}, fill {:?}, {} base image(s))",
-                self.scene.source.display(),
-                self.bake.dir.display(),
-                opts.time_interp,
-                opts.fill,
-                bases.len()
-            ),
-        });
-        let seen: Vec<bool> = pixels.par_iter().map(|a| !a.is_empty()).collect();
-        stats.holes = seen.iter().filter(|s| !**s).count();
+        stats.holes = pixels.par_iter().filter(|a| a.is_empty()).count();
+        if !image {
+            self.buffers = [pixels, second];
+            stats.load_seconds = self.cache.load_seconds - load_before;
+            stats.seconds = start.elapsed().as_secs_f64();
+            return Ok((None, stats));
+        }
+        let mut image = RangeImage::empty(self.frame_meta(camera, t, opts, bases.len()));
         write_pixels(self.scene, &poses_t, &pixels, &mut image);
         if opts.time_interp == TimeInterp::Reshade {
             let scene = self.scene;
@@ -468,9 +519,10 @@ impl<'a> Synthesizer<'a> {
             let engine = &*self.engine_at(t)?;
             stats.light_pixels = lights::trace(scene, engine, t, opts.light_rays, &mut image);
         }
+        self.buffers = [pixels, second];
         stats.load_seconds = self.cache.load_seconds - load_before;
         stats.seconds = start.elapsed().as_secs_f64();
-        Ok((image, stats, seen))
+        Ok((Some(image), stats))
     }
 
     /// The scene's ray engine (built on first use) posed at `t`.
@@ -493,25 +545,27 @@ impl<'a> Synthesizer<'a> {
 /// The most subpixels per side a frame pixel may be synthesized from.
 pub const MAX_SUPERSAMPLE: u32 = 4;
 
-/// `camera`'s frame from `fine`, synthesized at `k` × `k` subpixels a
-/// pixel: radiance is the mean of the subpixels some sample reached
-/// (`seen`), the surface (ids, normal) that of the seen subpixel nearest
-/// the pixel's centre, and the distance where the pixel's centre ray meets
-/// that surface's triangle (at `poses`), as a render's would be; a pixel
-/// none reached is a hole. A pixel part of which shows a light takes the
-/// light's surface, so that tracing lights' rims ([`lights`]) finds it.
-/// Returns the frame and its holes.
+/// A frame of `camera` (with `meta`) from its synthesis at `k` × `k`
+/// subpixels a pixel: subpixel `j` was reached by some sample (`seen`),
+/// holds `radiance(j)` and shows `surface(j)` (distance, object,
+/// primitive, normal). A pixel's radiance is the mean of its seen
+/// subpixels; its surface that of the seen subpixel nearest its centre,
+/// with the distance where its centre ray meets that surface's triangle
+/// (at `poses`), as a render's would be; a pixel none reached is a hole. A
+/// pixel part of which shows a light takes the light's surface, so that
+/// tracing lights' rims ([`lights`]) finds it. Returns the frame and its
+/// holes.
 fn downsample(
     scene: &Scene,
     poses: &[Affine3A],
-    fine: &RangeImage,
-    seen: &[bool],
-    camera: &Camera,
-    k: u32,
+    (camera, k, meta): (&Camera, u32, &RangeMeta),
+    seen: impl Fn(usize) -> bool + Sync,
+    radiance: impl Fn(usize) -> Vec3 + Sync,
+    surface: impl Fn(usize) -> (f32, u32, u32, Vec3) + Sync,
 ) -> (RangeImage, usize) {
     let mut image = RangeImage::empty(RangeMeta {
         camera: *camera,
-        ..fine.meta.clone()
+        ..meta.clone()
     });
     let (w, k) = (camera.width as usize, k as usize);
     let fw = w * k;
@@ -534,39 +588,33 @@ fn downsample(
         .zip(image.primitive_id.par_iter_mut())
         .zip(image.normal.par_iter_mut())
         .enumerate()
-        .map(
-            |(i, ((((radiance, distance), object), primitive), normal))| {
-                let (x, y) = (i % w, i / w);
-                let at = |(dx, dy): (usize, usize)| (y * k + dy) * fw + x * k + dx;
-                let (mut sum, mut n) = (Vec3::ZERO, 0u32);
-                for &o in &order {
-                    let j = at(o);
-                    if seen[j] {
-                        sum += fine.radiance[j];
-                        n += 1;
-                    }
+        .map(|(i, ((((pixel, distance), object), primitive), normal))| {
+            let (x, y) = (i % w, i / w);
+            let at = |(dx, dy): (usize, usize)| (y * k + dy) * fw + x * k + dx;
+            let (mut sum, mut n, mut shown, mut light) = (Vec3::ZERO, 0u32, None, None);
+            for &o in &order {
+                let j = at(o);
+                if !seen(j) {
+                    continue;
                 }
-                let Some(&first) = order
-                    .iter()
-                    .find(|&&o| seen[at(o)] && emits(fine.object_id[at(o)]))
-                    .or_else(|| order.iter().find(|&&o| seen[at(o)]))
-                else {
-                    return 1;
-                };
-                let j = at(first);
-                *radiance = sum / n as f32;
-                (*distance, *object, *primitive, *normal) = (
-                    fine.distance[j],
-                    fine.object_id[j],
-                    fine.primitive_id[j],
-                    fine.normal[j],
-                );
-                if let Some(d) = centre_distance(scene, poses, camera, x, y, *object, *primitive) {
-                    *distance = d;
+                sum += radiance(j);
+                n += 1;
+                let s = surface(j);
+                shown.get_or_insert(s);
+                if light.is_none() && emits(s.1) {
+                    light = Some(s);
                 }
-                0
-            },
-        )
+            }
+            let Some(s) = light.or(shown) else {
+                return 1;
+            };
+            *pixel = sum / n as f32;
+            (*distance, *object, *primitive, *normal) = s;
+            if let Some(d) = centre_distance(scene, poses, camera, x, y, *object, *primitive) {
+                *distance = d;
+            }
+            0
+        })
         .sum();
     (image, holes)
 }
@@ -619,9 +667,7 @@ fn blend_linear(a: &Accum, b: &Accum) -> Accum {
     }
 }
 
-/// The frame's pixels from what they gathered; normals of the surfaces
-/// shown from their triangles at the frame's time, turned towards the
-/// camera.
+/// The frame's pixels from what they gathered.
 fn write_pixels(scene: &Scene, poses: &[Affine3A], pixels: &[Accum], image: &mut RangeImage) {
     let cam = image.meta.camera.position;
     image
@@ -638,22 +684,29 @@ fn write_pixels(scene: &Scene, poses: &[Affine3A], pixels: &[Accum], image: &mut
                     return;
                 }
                 *radiance = a.radiance / a.w;
-                if a.z >= SKY_Z {
-                    return;
-                }
-                (*distance, *object, *primitive) = (a.z, a.object, a.primitive);
-                let mesh = &scene.objects[a.object as usize].mesh;
-                let Some(&[i, j, l]) = mesh.triangles.get(a.primitive as usize) else {
-                    return;
-                };
-                let p = &mesh.positions;
-                let e = (p[j as usize] - p[i as usize]).cross(p[l as usize] - p[i as usize]);
-                let n = poses[a.object as usize]
-                    .transform_vector3(e)
-                    .normalize_or_zero();
-                *normal = if n.dot(cam - a.point) < 0.0 { -n } else { n };
+                (*distance, *object, *primitive, *normal) = surface(scene, poses, cam, a);
             },
         );
+}
+
+/// The surface a pixel that gathered `a` shows: its distance, object and
+/// primitive ids and the normal of its triangle at `poses`, turned towards
+/// the camera at `cam`; distance 0, no ids and a zero normal for sky.
+fn surface(scene: &Scene, poses: &[Affine3A], cam: Vec3, a: &Accum) -> (f32, u32, u32, Vec3) {
+    if a.is_empty() || a.z >= SKY_Z {
+        return (0.0, NO_HIT, NO_HIT, Vec3::ZERO);
+    }
+    let mesh = &scene.objects[a.object as usize].mesh;
+    let Some(&[i, j, l]) = mesh.triangles.get(a.primitive as usize) else {
+        return (a.z, a.object, a.primitive, Vec3::ZERO);
+    };
+    let p = &mesh.positions;
+    let e = (p[j as usize] - p[i as usize]).cross(p[l as usize] - p[i as usize]);
+    let n = poses[a.object as usize]
+        .transform_vector3(e)
+        .normalize_or_zero();
+    let n = if n.dot(cam - a.point) < 0.0 { -n } else { n };
+    (a.z, a.object, a.primitive, n)
 }
 
 /// Whether `position` lies in the view space (with a relative slack for

@@ -332,7 +332,8 @@ struct Projected {
     primitive: u32,
 }
 
-/// Projects every pass into `buffer` (`width * height`, row-major).
+/// Projects every pass into `buffer` (`width * height`, row-major),
+/// whatever it held before.
 pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &mut [Accum]) {
     let (w, h) = (target.camera.width, target.camera.height);
     debug_assert_eq!(buffer.len(), (w * h) as usize);
@@ -382,6 +383,9 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
         .enumerate()
         .for_each(|(k, (rows, items))| {
             let y0 = k as u32 * band;
+            // The buffer may hold an earlier frame: cleared here, where the
+            // band is about to be written, rather than all at once before.
+            rows.fill(Accum::default());
             let mut scratch = Scratch::default();
             for &(i, t) in items {
                 let pass = &passes[i as usize];

@@ -266,7 +266,11 @@ fn run(cli: Cli) -> Result<()> {
             }
             indirect.check()?;
             image::check_output("--out", &out, image::OutputKind::Exr)?;
-            if let Some(dir) = indirect.bake.as_ref().filter(|d| !d.join(radiosity_bake::MANIFEST).exists()) {
+            if let Some(dir) = indirect
+                .bake
+                .as_ref()
+                .filter(|d| !d.join(radiosity_bake::MANIFEST).exists())
+            {
                 image::check_output_dir("--bake", dir)?;
             }
             if let Some(p) = &preview {

@@ -170,14 +170,39 @@ fn every_command_checks_its_outputs_first() {
         (vec!["synth", &bake, "--time", "0", "--out", exr], gone),
         (vec!["synth", &bake, "--time", "0", "--out", &txt], "`.txt`"),
         (
-            vec!["synth", &bake, "--time", "0", "--out", &x, "--preview", &png_as_exr],
+            vec![
+                "synth",
+                &bake,
+                "--time",
+                "0",
+                "--out",
+                &x,
+                "--preview",
+                &png_as_exr,
+            ],
             "--preview",
         ),
-        (vec!["walk", &bake, "--path", "walk", "--out", missing], gone),
-        (vec!["walk", &bake, "--path", "walk", "--out", &file], "not a folder"),
-        (vec!["bake", &scene, "--quality", "0.5", "--out", missing], gone),
         (
-            vec!["bake", &scene, "--quality", "0.5", "--out", "/proc/rangewalk-bake"],
+            vec!["walk", &bake, "--path", "walk", "--out", missing],
+            gone,
+        ),
+        (
+            vec!["walk", &bake, "--path", "walk", "--out", &file],
+            "not a folder",
+        ),
+        (
+            vec!["bake", &scene, "--quality", "0.5", "--out", missing],
+            gone,
+        ),
+        (
+            vec![
+                "bake",
+                &scene,
+                "--quality",
+                "0.5",
+                "--out",
+                "/proc/rangewalk-bake",
+            ],
             "cannot create files in /proc",
         ),
         (vec!["radiosity", &scene, "--out", missing], gone),
@@ -185,13 +210,32 @@ fn every_command_checks_its_outputs_first() {
             vec!["export", &scene, "--format", "mitsuba", "--out", missing],
             gone,
         ),
-        (vec!["plan", &scene, "--quality", "0.5", "--out", &plan_txt], "expected .json"),
         (
-            vec!["plan", &scene, "--quality", "0.5", "--out", "/nonexistent/dir/p.json"],
+            vec!["plan", &scene, "--quality", "0.5", "--out", &plan_txt],
+            "expected .json",
+        ),
+        (
+            vec![
+                "plan",
+                &scene,
+                "--quality",
+                "0.5",
+                "--out",
+                "/nonexistent/dir/p.json",
+            ],
             gone,
         ),
         (
-            vec!["slurm", &scene, "--quality", "0.5", "--tasks", "2", "--out", missing],
+            vec![
+                "slurm",
+                &scene,
+                "--quality",
+                "0.5",
+                "--tasks",
+                "2",
+                "--out",
+                missing,
+            ],
             gone,
         ),
         (
@@ -201,7 +245,15 @@ fn every_command_checks_its_outputs_first() {
         (vec!["experiment", "views", &scene, "--out", missing], gone),
         (vec!["experiment", "motion", &scene, "--out", missing], gone),
         (
-            vec!["experiment", "walkthrough", &scene, "--path", "walk", "--out", missing],
+            vec![
+                "experiment",
+                "walkthrough",
+                &scene,
+                "--path",
+                "walk",
+                "--out",
+                missing,
+            ],
             gone,
         ),
         (
@@ -211,7 +263,13 @@ fn every_command_checks_its_outputs_first() {
         (vec!["view", &bake, "--record", missing], gone),
         (
             vec![
-                "render", &scene, "--out", &x, "--indirect", "radiosity", "--bake",
+                "render",
+                &scene,
+                "--out",
+                &x,
+                "--indirect",
+                "radiosity",
+                "--bake",
                 missing,
             ],
             gone,

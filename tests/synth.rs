@@ -443,7 +443,10 @@ fn bad_input_is_refused_and_leaves_nothing_half_written() {
     // An output that cannot be written: refused before the bake is read,
     // nothing written.
     for (bad, needle) in [
-        ("/nonexistent/dir/x.exr", "folder /nonexistent/dir does not exist"),
+        (
+            "/nonexistent/dir/x.exr",
+            "folder /nonexistent/dir does not exist",
+        ),
         (&*dir.path().join("frame.txt").to_string_lossy(), "`.txt`"),
     ] {
         let o = rangewalk(&["synth", bake_s, "--time", "0", "--out", bad]);

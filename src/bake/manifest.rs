@@ -97,7 +97,10 @@ impl Manifest {
                 bail!("`plan.views[{v}].position` {} is not finite", view.position);
             }
             if !view.times.iter().all(|t| t.is_finite()) {
-                bail!("`plan.views[{v}].times` {:?} are not all finite", view.times);
+                bail!(
+                    "`plan.views[{v}].times` {:?} are not all finite",
+                    view.times
+                );
             }
             if !view.times.windows(2).all(|w| w[0] < w[1]) {
                 bail!(
@@ -262,7 +265,11 @@ mod tests {
         let good = || view(Vec3::ZERO, &[0.0, 1.0]);
         check(good(), entry(0, 1, 1.0, "images/a.exr")).unwrap();
         for (views, e, needle) in [
-            (good(), entry(1, 0, 0.0, "a.exr"), "not one of the plan's 1 views"),
+            (
+                good(),
+                entry(1, 0, 0.0, "a.exr"),
+                "not one of the plan's 1 views",
+            ),
             (good(), entry(0, 2, 1.0, "a.exr"), "index 2"),
             (good(), entry(0, 1, 0.5, "a.exr"), "time 0.5"),
             (good(), entry(0, 0, 0.0, "/etc/passwd"), "inside the bake"),

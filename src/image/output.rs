@@ -123,7 +123,10 @@ mod tests {
         assert!(e.to_string().contains("expected .json"), "{e}");
         // A place no one can create files in, even root.
         let e = check_output_dir("--out", Path::new("/proc/rangewalk")).unwrap_err();
-        assert!(format!("{e:#}").contains("cannot create files in /proc"), "{e:#}");
+        assert!(
+            format!("{e:#}").contains("cannot create files in /proc"),
+            "{e:#}"
+        );
         assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 1);
     }
 }

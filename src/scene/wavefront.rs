@@ -120,7 +120,10 @@ pub fn prepare_mtl(path: &Path, text: &str) -> Result<(String, Vec<String>)> {
             let numbers = values.iter().all(|w| w.parse::<f32>().is_ok());
             let colour = COLOUR_STATEMENTS.contains(&keyword);
             match (colour, values.len()) {
-                _ if !numbers && colour && matches!(values.first(), Some(&("xyz" | "spectral"))) => {
+                _ if !numbers
+                    && colour
+                    && matches!(values.first(), Some(&("xyz" | "spectral"))) =>
+                {
                     bail!(
                         "{}: `{}`: CIE XYZ and spectral colours are not supported; give `{keyword} r g b`",
                         at(),
@@ -138,11 +141,7 @@ pub fn prepare_mtl(path: &Path, text: &str) -> Result<(String, Vec<String>)> {
                     at(),
                     line.trim()
                 ),
-                (false, n) => bail!(
-                    "{}: `{}` with {n} numbers (expected 1)",
-                    at(),
-                    line.trim()
-                ),
+                (false, n) => bail!("{}: `{}` with {n} numbers (expected 1)", at(), line.trim()),
             }
             continue;
         }
@@ -253,7 +252,10 @@ mod tests {
             ("Ke\n", "a.mtl:1: `Ke` with 0 numbers"),
             ("Kd 1 1 1 1\n", "with 4 numbers"),
             ("Kd xyz 0.1 0.2 0.3\n", "CIE XYZ"),
-            ("Kd 0.5 red 0.5\n", "a.mtl:1: `Kd 0.5 red 0.5`: not a number"),
+            (
+                "Kd 0.5 red 0.5\n",
+                "a.mtl:1: `Kd 0.5 red 0.5`: not a number",
+            ),
             ("Ns\n", "`Ns` with 0 numbers (expected 1)"),
             ("d 0.5 0.5\n", "expected 1"),
         ] {

@@ -49,6 +49,13 @@ pub fn check_output(flag: &str, path: &Path, kind: OutputKind) -> Result<()> {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
+    if !dir.is_dir() {
+        bail!(
+            "{flag} {}: the folder {} does not exist",
+            path.display(),
+            dir.display()
+        );
+    }
     if path.is_dir() {
         bail!("{flag} {}: is a folder, not a file", path.display());
     }

@@ -16,6 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::image;
 use crate::plan::Plan;
+pub use crate::scene::hash::hex;
 use crate::scene::hash::ContentHash;
 
 use super::Settings;
@@ -151,11 +152,6 @@ pub fn checksum_path(image: &Path) -> PathBuf {
     let mut name = image.as_os_str().to_os_string();
     name.push(".fnv1a64");
     PathBuf::from(name)
-}
-
-/// A checksum as the manifest writes it: 16 hex digits.
-pub fn hex(sum: u64) -> String {
-    format!("{sum:016x}")
 }
 
 /// The image's checksum: of its content (channels and metadata), not of

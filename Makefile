@@ -17,7 +17,7 @@ RW := target/release/rangewalk
 
 export RANGEWALK_PYTHON := $(abspath $(PYTHON))
 
-.PHONY: demo test deps debs venv build lint bench clean install capi-test
+.PHONY: demo test deps debs venv build lint bench clean install capi-test fuzz
 
 # The framework's main job on the animated Cornell box: plan and bake base
 # images, walk the scene's path from them, path-trace every fifth frame of
@@ -72,6 +72,21 @@ capi-test: build
 	cmake --build $(CAPI)/errors
 	$(SANITIZERS) $(CAPI)/pipeline/pipeline $(DEMO_SCENE) $(CAPI)/run $(abspath $(RW))
 	$(SANITIZERS) $(CAPI)/errors/error_paths $(DEMO_SCENE) scenes/furnace/scene.toml $(CAPI)/run/bake $(CAPI)/errors/work
+
+# Fuzzing (docs/fuzzing.md): each target for FUZZ_SECONDS on one core,
+# from the committed inputs (tests/fuzz-regressions/<target>/, which
+# `cargo test --test fuzz_regressions` replays on stable). New inputs go to
+# fuzz/corpus/<target>, a crash to fuzz/artifacts/<target>/ and fails the run.
+FUZZ_SECONDS ?= 60
+FUZZ_TARGETS := scene exr bake
+fuzz:
+	@command -v cargo-fuzz > /dev/null || $(CARGO) install cargo-fuzz
+	@rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
+	cd fuzz && for t in $(FUZZ_TARGETS); do \
+	  mkdir -p corpus/$$t && \
+	  $(CARGO) +nightly fuzz run -a $$t corpus/$$t $$(ls -d ../tests/fuzz-regressions/$$t/*/) -- \
+	    -max_total_time=$(FUZZ_SECONDS) -timeout=10 -rss_limit_mb=2048 || exit 1; \
+	done
 
 deps: debs venv
 

@@ -7,9 +7,6 @@
 //! rays go to fixed random points on the light. Embree where the build has
 //! it.
 
-mod common;
-use common::Rng;
-
 use std::hint::black_box;
 use std::path::PathBuf;
 
@@ -18,6 +15,7 @@ use glam::Vec3;
 use rangewalk::accel::{self, offset_origin, Backend, Ray};
 use rangewalk::radiosity::lookup::IrradianceCache;
 use rangewalk::radiosity::{simplify, solve, Quality};
+use rangewalk::rng::SplitMix64;
 use rangewalk::scene::Scene;
 
 const SIZE: u32 = 256;
@@ -59,7 +57,7 @@ fn lookup(c: &mut Criterion) {
     }
     assert!(!light.is_empty(), "the Cornell box has an area light");
 
-    let mut rng = Rng(1);
+    let mut rng = SplitMix64::new(1);
     let (mut queries, mut shadows) = (Vec::new(), Vec::new());
     for y in 0..SIZE {
         for x in 0..SIZE {
@@ -85,8 +83,8 @@ fn lookup(c: &mut Criterion) {
                 point: local,
                 normal: if front { normal } else { -normal },
             });
-            let [la, lb, lc] = light[(rng.f32() * light.len() as f32) as usize % light.len()];
-            let (u, v) = (rng.f32(), rng.f32());
+            let [la, lb, lc] = light[(rng.next_f32() * light.len() as f32) as usize % light.len()];
+            let (u, v) = (rng.next_f32(), rng.next_f32());
             let (u, v) = if u + v > 1.0 {
                 (1.0 - u, 1.0 - v)
             } else {

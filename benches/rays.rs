@@ -6,9 +6,6 @@
 //! All rays are generated once, with a fixed seed, outside the timed loops;
 //! every backend traces the same rays.
 
-mod common;
-use common::Rng;
-
 use std::f32::consts::{PI, TAU};
 use std::time::Duration;
 
@@ -16,6 +13,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use glam::{Affine3A, Quat, Vec3};
 use rangewalk::accel::{self, offset_origin, Backend, InstancedEngine, MeshGeometry, Ray};
 use rangewalk::camera::{Camera, Projection};
+use rangewalk::rng::SplitMix64;
 use rangewalk::scene::Scene;
 
 /// Pixels of the primary-ray image, and rays of the other kinds.
@@ -167,19 +165,19 @@ fn ray_sets(scene: &BenchScene) -> RaySets {
         "{}: the camera sees nothing",
         scene.name
     );
-    let mut rng = Rng(0xBE7C);
+    let mut rng = SplitMix64::new(0xBE7C);
     let mut diffuse = Vec::with_capacity(RAYS);
     let mut shadow = Vec::with_capacity(RAYS);
     for i in 0..RAYS {
         let (p, n, incoming) = surface[i % surface.len()];
         let n = if n.dot(incoming) < 0.0 { n } else { -n };
         // Cosine-weighted direction about n.
-        let (r, phi) = (rng.f32().sqrt(), TAU * rng.f32());
+        let (r, phi) = (rng.next_f32().sqrt(), TAU * rng.next_f32());
         let (t, b) = n.any_orthonormal_pair();
         let dir = t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - r * r).max(0.0).sqrt();
         diffuse.push(Ray::new(offset_origin(p, n, dir), dir));
         let (corner, e1, e2) = scene.light;
-        let target = corner + e1 * rng.f32() + e2 * rng.f32();
+        let target = corner + e1 * rng.next_f32() + e2 * rng.next_f32();
         let origin = offset_origin(p, n, target - p);
         shadow.push(Ray::segment(origin, target - origin, 0.999));
     }

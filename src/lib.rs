@@ -26,6 +26,7 @@ pub mod image;
 pub mod plan;
 pub mod radiosity;
 pub mod render;
+pub mod rng;
 pub mod scene;
 pub mod synth;
 pub mod viewer;

@@ -266,6 +266,13 @@ fn run(cli: Cli) -> Result<()> {
             }
             indirect.check()?;
             image::check_output("--out", &out, image::OutputKind::Exr)?;
+            if let Some(dir) = indirect
+                .bake
+                .as_ref()
+                .filter(|d| !d.join(radiosity_bake::MANIFEST).exists())
+            {
+                image::check_output_dir("--bake", dir)?;
+            }
             if let Some(p) = &preview {
                 image::check_output("--preview", p, image::OutputKind::Png)?;
             }
@@ -324,6 +331,7 @@ fn run(cli: Cli) -> Result<()> {
             format,
             out,
         } => {
+            image::check_output_dir("--out", &out)?;
             let s = load(&scene)?;
             view.check_time(&s)?;
             let camera = view.camera(&s)?;
@@ -346,6 +354,7 @@ fn run(cli: Cli) -> Result<()> {
             backend,
         } => {
             let q = Quality::new(quality).context("--quality")?;
+            image::check_output_dir("--out", &out)?;
             let s = load(&scene)?;
             let mut engine = engine_at_start(&s, backend)?;
             let (simplified, series) = radiosity::simplify_and_decompose(&s, engine.as_mut(), q)?;
@@ -617,6 +626,9 @@ fn plan(args: PlanArgs) -> Result<()> {
             plan::RESOLUTIONS.end()
         );
     }
+    if let Some(out) = &args.out {
+        image::check_output("--out", out, image::OutputKind::Json)?;
+    }
     let mut s = load(&args.scene)?;
     if let Some(space) = args.view_segment {
         s.view_space = Some(space);
@@ -850,6 +862,7 @@ fn bake_command(args: BakeArgs) -> Result<()> {
         bail!("bake needs a scene, --quality and --out");
     };
     let quality = Quality::new(quality).context("--quality")?;
+    image::check_output_dir("--out", out)?;
     let shard = if args.shard_from_env {
         bake::slurm::shard_from_env()?
     } else {
@@ -1036,6 +1049,7 @@ struct SlurmArgs {
 fn slurm_command(a: SlurmArgs) -> Result<()> {
     use bake::slurm;
     let quality = Quality::new(a.quality).context("--quality")?;
+    image::check_output_dir("--out", &a.out)?;
     let s = load(&a.scene)?;
     let (settings, why) = a.options.settings(&s, quality)?;
     if a.tasks == 0 {

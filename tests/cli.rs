@@ -151,6 +151,141 @@ fn outputs_are_checked_before_the_work_starts() {
     assert!(std::fs::read_dir(dir.path()).unwrap().next().is_none());
 }
 
+/// Every command's outputs, files and folders alike, are checked before
+/// its inputs are even read: each case names an input that does not
+/// exist, so only the output check can produce the message asked for,
+/// and nothing may be left behind.
+#[test]
+fn every_command_checks_its_outputs_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+    let (scene, bake) = (p("nope.toml"), p("no-bake"));
+    let file = p("a-file");
+    std::fs::write(&file, "").unwrap();
+    let (txt, x, png_as_exr, plan_txt) = (p("x.txt"), p("x.exr"), p("p.exr"), p("plan.txt"));
+    let missing = "/nonexistent/dir/out";
+    let gone = "folder /nonexistent/dir does not exist";
+    let exr = "/nonexistent/dir/x.exr";
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["synth", &bake, "--time", "0", "--out", exr], gone),
+        (vec!["synth", &bake, "--time", "0", "--out", &txt], "`.txt`"),
+        (
+            vec![
+                "synth",
+                &bake,
+                "--time",
+                "0",
+                "--out",
+                &x,
+                "--preview",
+                &png_as_exr,
+            ],
+            "--preview",
+        ),
+        (
+            vec!["walk", &bake, "--path", "walk", "--out", missing],
+            gone,
+        ),
+        (
+            vec!["walk", &bake, "--path", "walk", "--out", &file],
+            "not a folder",
+        ),
+        (
+            vec!["bake", &scene, "--quality", "0.5", "--out", missing],
+            gone,
+        ),
+        (
+            vec![
+                "bake",
+                &scene,
+                "--quality",
+                "0.5",
+                "--out",
+                "/proc/rangewalk-bake",
+            ],
+            "cannot create files in /proc",
+        ),
+        (vec!["radiosity", &scene, "--out", missing], gone),
+        (
+            vec!["export", &scene, "--format", "mitsuba", "--out", missing],
+            gone,
+        ),
+        (
+            vec!["plan", &scene, "--quality", "0.5", "--out", &plan_txt],
+            "expected .json",
+        ),
+        (
+            vec![
+                "plan",
+                &scene,
+                "--quality",
+                "0.5",
+                "--out",
+                "/nonexistent/dir/p.json",
+            ],
+            gone,
+        ),
+        (
+            vec![
+                "slurm",
+                &scene,
+                "--quality",
+                "0.5",
+                "--tasks",
+                "2",
+                "--out",
+                missing,
+            ],
+            gone,
+        ),
+        (
+            vec!["experiment", "indirect", &scene, "--out", missing],
+            gone,
+        ),
+        (vec!["experiment", "views", &scene, "--out", missing], gone),
+        (vec!["experiment", "motion", &scene, "--out", missing], gone),
+        (
+            vec![
+                "experiment",
+                "walkthrough",
+                &scene,
+                "--path",
+                "walk",
+                "--out",
+                missing,
+            ],
+            gone,
+        ),
+        (
+            vec!["view", &bake, "--screenshot", "/nonexistent/dir/s.png"],
+            gone,
+        ),
+        (vec!["view", &bake, "--record", missing], gone),
+        (
+            vec![
+                "render",
+                &scene,
+                "--out",
+                &x,
+                "--indirect",
+                "radiosity",
+                "--bake",
+                missing,
+            ],
+            gone,
+        ),
+    ];
+    for (args, needle) in &cases {
+        let start = std::time::Instant::now();
+        fails_with(args, needle);
+        let s = start.elapsed().as_secs_f64();
+        assert!(s < 10.0, "{args:?}: {s:.1} s to fail");
+    }
+    assert!(!Path::new("/nonexistent").exists());
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().flatten().collect();
+    assert_eq!(left.len(), 1, "{left:?}");
+}
+
 /// A size whose image would not fit in memory is refused while parsing.
 #[test]
 fn absurd_sizes_are_refused_before_any_allocation() {

@@ -211,7 +211,23 @@ mod from_other_tools {
         // A missing texture: Kd alone.
         assert_eq!(diffuse(&s, "lost"), (Vec3::splat(0.4), false));
         assert_eq!(warnings_with(&s, "missing.png").len(), 1);
-        assert_eq!(s.warnings.len(), 7, "{:#?}", s.warnings);
+        // Neither Kd nor map_Kd: the default grey, as for no material at
+        // all, with one warning naming the MTL file and the material.
+        assert_eq!(diffuse(&s, "bare"), (Vec3::splat(0.5), false));
+        let bare = warnings_with(&s, "`bare`");
+        assert_eq!(bare.len(), 1, "{:#?}", s.warnings);
+        assert!(
+            bare[0].contains("textured.mtl") && bare[0].contains("neither `Kd`"),
+            "{}",
+            bare[0]
+        );
+        // `Ke` emits (tobj reads it as `emissive`, where it was once not
+        // looked for), and `Kd 0.2` is a grey.
+        assert_eq!(diffuse(&s, "glow"), (Vec3::splat(0.2), false));
+        let glow = s.objects.iter().find(|o| o.name == "glow").unwrap();
+        let emission = s.materials[glow.material].emission.as_ref();
+        assert_eq!(emission.map(|e| e.radiance), Some(Vec3::new(3.0, 2.0, 1.0)));
+        assert_eq!(s.warnings.len(), 8, "{:#?}", s.warnings);
     }
 
     #[test]

@@ -507,6 +507,21 @@ fn bad_input_is_refused_and_leaves_nothing_half_written() {
     );
     assert!(!walk_out.exists() && !dir.path().join("walk.partial").exists());
 
+    // An output that cannot be written: refused before the bake is read,
+    // nothing written.
+    for (bad, needle) in [
+        (
+            "/nonexistent/dir/x.exr",
+            "folder /nonexistent/dir does not exist",
+        ),
+        (&*dir.path().join("frame.txt").to_string_lossy(), "`.txt`"),
+    ] {
+        let o = rangewalk(&["synth", bake_s, "--time", "0", "--out", bad]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(needle), "{err}");
+        assert!(!Path::new(bad).exists());
+    }
+
     // A camera outside the view space is a warning, and the frame is made.
     let o = rangewalk(&[
         "synth", bake_s, "--camera", "behind", "--time", "0.5", "--size", "16x16", "--out", out_s,

@@ -16,6 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::image;
 use crate::plan::Plan;
+pub use crate::scene::hash::hex;
 use crate::scene::hash::ContentHash;
 
 use super::Settings;
@@ -81,7 +82,62 @@ impl Manifest {
                 m.version
             );
         }
+        m.check().with_context(|| format!("{}", path.display()))?;
         Ok(m)
+    }
+
+    /// What readers rely on and serde cannot check: every image names a
+    /// view and time of the plan and a file inside the bake directory (a
+    /// manifest is data, and must not point a reader at `/etc/passwd` or
+    /// `../elsewhere`), and every view's times are finite and increasing,
+    /// as the interpolation between them assumes.
+    fn check(&self) -> Result<()> {
+        let views = &self.plan.views;
+        for (v, view) in views.iter().enumerate() {
+            if !view.position.is_finite() {
+                bail!("`plan.views[{v}].position` {} is not finite", view.position);
+            }
+            if !view.times.iter().all(|t| t.is_finite()) {
+                bail!(
+                    "`plan.views[{v}].times` {:?} are not all finite",
+                    view.times
+                );
+            }
+            if !view.times.windows(2).all(|w| w[0] < w[1]) {
+                bail!(
+                    "`plan.views[{v}].times` {:?} are not in increasing order",
+                    view.times
+                );
+            }
+        }
+        for (k, e) in self.images.iter().enumerate() {
+            let Some(view) = views.get(e.view) else {
+                bail!(
+                    "`images[{k}].view` {} is not one of the plan's {} views",
+                    e.view,
+                    views.len()
+                );
+            };
+            if view.times.get(e.time_index) != Some(&e.time) {
+                bail!(
+                    "`images[{k}]`: time {} (index {}) is not one of view {}'s times {:?}",
+                    e.time,
+                    e.time_index,
+                    e.view,
+                    view.times
+                );
+            }
+            let inside = Path::new(&e.file)
+                .components()
+                .all(|c| matches!(c, std::path::Component::Normal(_)));
+            if e.file.is_empty() || !inside {
+                bail!(
+                    "`images[{k}].file` `{}` is not a path inside the bake directory",
+                    e.file
+                );
+            }
+        }
+        Ok(())
     }
 
     /// Writes the manifest atomically (a reader sees the old or the new one).
@@ -96,11 +152,6 @@ pub fn checksum_path(image: &Path) -> PathBuf {
     let mut name = image.as_os_str().to_os_string();
     name.push(".fnv1a64");
     PathBuf::from(name)
-}
-
-/// A checksum as the manifest writes it: 16 hex digits.
-pub fn hex(sum: u64) -> String {
-    format!("{sum:016x}")
 }
 
 /// The image's checksum: of its content (channels and metadata), not of
@@ -149,4 +200,90 @@ pub fn write_atomically(target: &Path, bytes: &[u8]) -> Result<()> {
         let _ = fs::remove_file(&tmp);
     }
     result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::PlannedView;
+    use glam::Vec3;
+
+    fn entry(view: usize, time_index: usize, time: f32, file: &str) -> ImageEntry {
+        ImageEntry {
+            view,
+            time_index,
+            time,
+            file: file.into(),
+            fnv1a64: None,
+        }
+    }
+
+    fn view(position: Vec3, times: &[f32]) -> Vec<PlannedView> {
+        vec![PlannedView {
+            position,
+            times: times.to_vec(),
+        }]
+    }
+
+    fn check(views: Vec<PlannedView>, e: ImageEntry) -> Result<(), String> {
+        let manifest = Manifest {
+            format: FORMAT.into(),
+            version: VERSION,
+            scene: PathBuf::from("scene.toml"),
+            scene_hash: ContentHash {
+                total: String::new(),
+                text: String::new(),
+                meshes: Vec::new(),
+                materials: Vec::new(),
+            },
+            settings: Settings {
+                quality: 0.5,
+                size: 4,
+                spp: 1,
+                projection: super::super::BaseProjection::Sphere,
+                indirect: super::super::IndirectSource::Path,
+                seed: 0,
+                backend: crate::accel::Backend::Bvh,
+                max_depth: None,
+            },
+            plan: Plan {
+                views,
+                ..Plan::default()
+            },
+            images: vec![e],
+            complete: false,
+        };
+        manifest.check().map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn images_must_name_the_plan_and_stay_inside_the_bake() {
+        let good = || view(Vec3::ZERO, &[0.0, 1.0]);
+        check(good(), entry(0, 1, 1.0, "images/a.exr")).unwrap();
+        for (views, e, needle) in [
+            (
+                good(),
+                entry(1, 0, 0.0, "a.exr"),
+                "not one of the plan's 1 views",
+            ),
+            (good(), entry(0, 2, 1.0, "a.exr"), "index 2"),
+            (good(), entry(0, 1, 0.5, "a.exr"), "time 0.5"),
+            (good(), entry(0, 0, 0.0, "/etc/passwd"), "inside the bake"),
+            (good(), entry(0, 0, 0.0, "../x.exr"), "inside the bake"),
+            (good(), entry(0, 0, 0.0, ""), "inside the bake"),
+            (
+                view(Vec3::ZERO, &[1.0, 0.0]),
+                entry(0, 0, 1.0, "a.exr"),
+                "increasing",
+            ),
+            (
+                view(Vec3::NAN, &[0.0]),
+                entry(0, 0, 0.0, "a.exr"),
+                "position",
+            ),
+        ] {
+            let e = check(views, e).unwrap_err();
+            assert!(e.contains(needle), "`{needle}` not in: {e}");
+        }
+    }
 }

@@ -169,6 +169,7 @@ pub struct IndirectResults {
 
 /// Runs the experiment and writes its report to `args.out`.
 pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
+    crate::image::check_output_dir("--out", &args.out)?;
     ensure!(!args.quality.is_empty(), "--quality names no quality");
     let qualities = args
         .quality

@@ -125,6 +125,7 @@ impl CommonArgs {
     /// Checks the options, loads the scene and finds FLIP, before anything
     /// is written.
     pub fn setup(&self) -> Result<Setup> {
+        crate::image::check_output_dir("--out", &self.out)?;
         ensure!(!self.quality.is_empty(), "--quality names no quality");
         let qualities = self
             .quality

@@ -4,11 +4,11 @@
 
 use std::path::Path;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, ensure, Context, Result};
 use exr::prelude::*;
 
 use super::planes::{Attr, Plane, Planes};
-use super::{write_atomically, RangeImage};
+use super::{write_atomically, RangeImage, MAX_PIXELS};
 use crate::scene::Texture;
 
 /// Writes `image` as a single-part, ZIP-compressed EXR, atomically.
@@ -25,6 +25,16 @@ pub fn read(path: impl AsRef<Path>) -> Result<RangeImage> {
     read_planes(path)?
         .into_range()
         .with_context(|| format!("{}: not a range image", path.display()))
+}
+
+/// [`super::read_exr_with_layers_hashed`] through this back end in every
+/// build, so that files can be checked (and fuzzed) without OpenImageIO.
+pub fn read_with_layers_hashed(
+    path: impl AsRef<Path>,
+    layers: &[&str],
+) -> Result<(RangeImage, Vec<Vec<glam::Vec3>>, u64)> {
+    let path = path.as_ref();
+    super::gather_layers(path, read_planes(path)?, layers)
 }
 
 fn text(s: &str) -> Text {
@@ -64,9 +74,53 @@ pub(super) fn write_planes(path: &Path, planes: &Planes) -> Result<()> {
         .map_err(|e| anyhow!("{}: cannot write EXR: {e}", path.display()))
 }
 
+/// Decoded bytes an EXR may hold per byte of its file. No compression the
+/// `exr` crate reads packs more: zlib's limit is 1032:1, and PXR24 keeps
+/// 24 of a float's 32 bits before zlib (1376:1), so a header that declares
+/// more describes data its file cannot hold.
+const MAX_EXPANSION: u64 = 2048;
+
+/// Checks what an EXR header declares before any decoder allocates for
+/// it: no layer above [`MAX_PIXELS`], and no more samples than the file's
+/// size can hold compressed. A header of a few bytes can declare
+/// terabytes, which the decoders allocate up front (found by fuzzing).
+pub fn check_header(path: &Path) -> Result<()> {
+    let len = std::fs::metadata(path)
+        .with_context(|| format!("{}: cannot read EXR", path.display()))?
+        .len();
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| anyhow!("{}: cannot read EXR: {e}", path.display()))?;
+    for header in meta.headers.iter() {
+        let (w, h) = (header.layer_size.width(), header.layer_size.height());
+        let pixels = w as u64 * h as u64;
+        ensure!(
+            pixels <= MAX_PIXELS,
+            "{}: EXR layer of {w}x{h} pixels, more than the {MAX_PIXELS} (8192x8192) an image may hold here",
+            path.display()
+        );
+        // Every sample is decoded to 4 bytes (halves become floats).
+        let samples: u64 = header
+            .channels
+            .list
+            .iter()
+            .map(|c| pixels / (c.sampling.x().max(1) * c.sampling.y().max(1)) as u64)
+            .sum();
+        let decoded = 4 * samples;
+        ensure!(
+            decoded <= MAX_EXPANSION * len + (1 << 20),
+            "{}: EXR header declares {w}x{h} pixels in {} channel(s), {decoded} bytes decoded, \
+             from a file of {len} bytes, more than any EXR compression holds: the file is damaged",
+            path.display(),
+            header.channels.list.len()
+        );
+    }
+    Ok(())
+}
+
 /// Reads the first layer of any flat EXR: float and half channels as f32,
 /// unsigned channels verbatim, and the float, 3-vector and text attributes.
 pub(super) fn read_planes(path: &Path) -> Result<Planes> {
+    check_header(path)?;
     let image = exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()

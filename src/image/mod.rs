@@ -36,7 +36,7 @@ pub mod png_io;
 pub mod rgbe;
 
 pub use color::tonemap_srgb8;
-pub use output::{check_output, OutputKind};
+pub use output::{check_output, check_output_dir, OutputKind};
 
 /// Object/primitive id of a pixel whose ray hit nothing.
 pub const NO_HIT: u32 = u32::MAX;
@@ -142,7 +142,7 @@ pub fn read_exr(path: impl AsRef<Path>) -> Result<RangeImage> {
     #[cfg(feature = "oiio")]
     {
         let path = path.as_ref();
-        oiio::read(path)?
+        read_planes(path)?
             .into_range()
             .with_context(|| format!("{}: not a range image", path.display()))
     }
@@ -183,7 +183,11 @@ pub fn exr_content_hash(path: impl AsRef<Path>) -> Result<u64> {
 
 fn read_planes(path: &Path) -> Result<planes::Planes> {
     #[cfg(feature = "oiio")]
-    return oiio::read(path);
+    {
+        // The same limits whichever back end decodes the file.
+        exr_io::check_header(path)?;
+        oiio::read(path)
+    }
     #[cfg(not(feature = "oiio"))]
     exr_io::read_planes(path)
 }
@@ -205,7 +209,16 @@ pub fn read_exr_with_layers_hashed(
     layers: &[&str],
 ) -> Result<(RangeImage, Vec<Vec<Vec3>>, u64)> {
     let path = path.as_ref();
-    let planes = read_planes(path)?;
+    gather_layers(path, read_planes(path)?, layers)
+}
+
+/// The range image, the named layers and the content hash of decoded
+/// planes, whichever back end decoded them.
+fn gather_layers(
+    path: &Path,
+    planes: planes::Planes,
+    layers: &[&str],
+) -> Result<(RangeImage, Vec<Vec<Vec3>>, u64)> {
     // The hash is one serial pass over every byte: overlap it with the
     // layers' gathering.
     let (hash, values) = rayon::join(

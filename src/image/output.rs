@@ -1,6 +1,9 @@
 //! Output paths checked before the work that fills them starts: a render
 //! that runs to the end and only then finds its folder missing, or writes
-//! an EXR under a `.txt` name, loses the work or misleads.
+//! an EXR under a `.txt` name, loses the work or misleads. Output folders
+//! are held to the same rule: the folder may be new, but the one it goes
+//! in must exist, so that a mistyped parent is an error, not a tree of
+//! folders made by the command.
 
 use std::path::Path;
 
@@ -12,6 +15,7 @@ pub enum OutputKind {
     Exr,
     Png,
     Hdr,
+    Json,
 }
 
 impl OutputKind {
@@ -20,6 +24,7 @@ impl OutputKind {
             OutputKind::Exr => &["exr"],
             OutputKind::Png => &["png"],
             OutputKind::Hdr => &["hdr", "pic", "rgbe"],
+            OutputKind::Json => &["json"],
         }
     }
 }
@@ -51,6 +56,39 @@ pub fn check_output(flag: &str, path: &Path, kind: OutputKind) -> Result<()> {
             dir.display()
         );
     }
+    if path.is_dir() {
+        bail!("{flag} {}: is a folder, not a file", path.display());
+    }
+    check_writable(flag, path, dir)
+}
+
+/// Checks that the folder `path` (given with `flag`) can be written: it
+/// is a folder files can be created in, or it does not exist yet and can
+/// be created in its parent, which must exist.
+pub fn check_output_dir(flag: &str, path: &Path) -> Result<()> {
+    if path.exists() {
+        if !path.is_dir() {
+            bail!("{flag} {}: exists and is not a folder", path.display());
+        }
+        return check_writable(flag, path, path);
+    }
+    let parent = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !parent.is_dir() {
+        bail!(
+            "{flag} {}: the folder {} does not exist",
+            path.display(),
+            parent.display()
+        );
+    }
+    check_writable(flag, path, parent)
+}
+
+/// Whether a file can be created in `dir`, found by creating and removing
+/// one: permissions alone do not tell (read-only mounts, quotas, ACLs).
+fn check_writable(flag: &str, path: &Path, dir: &Path) -> Result<()> {
     let probe = dir.join(format!(".rangewalk-probe-{}", std::process::id()));
     std::fs::OpenOptions::new()
         .write(true)
@@ -67,4 +105,35 @@ pub fn check_output(flag: &str, path: &Path, kind: OutputKind) -> Result<()> {
     // harms nothing the command writes.
     let _ = std::fs::remove_file(&probe);
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn folders_are_checked_like_files() {
+        let d = tempfile::tempdir().unwrap();
+        let new = d.path().join("new");
+        check_output_dir("--out", &new).unwrap();
+        assert!(!new.exists(), "the check created the folder");
+        check_output_dir("--out", d.path()).unwrap();
+        let e = check_output_dir("--out", &new.join("deeper")).unwrap_err();
+        assert!(e.to_string().contains("does not exist"), "{e}");
+        let file = d.path().join("f");
+        std::fs::write(&file, "").unwrap();
+        let e = check_output_dir("--out", &file).unwrap_err();
+        assert!(e.to_string().contains("not a folder"), "{e}");
+        let e = check_output("--out", d.path(), OutputKind::Json).unwrap_err();
+        assert!(e.to_string().contains("`.`"), "{e}");
+        let e = check_output("--out", &d.path().join("p.txt"), OutputKind::Json).unwrap_err();
+        assert!(e.to_string().contains("expected .json"), "{e}");
+        // A place no one can create files in, even root.
+        let e = check_output_dir("--out", Path::new("/proc/rangewalk")).unwrap_err();
+        assert!(
+            format!("{e:#}").contains("cannot create files in /proc"),
+            "{e:#}"
+        );
+        assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 1);
+    }
 }

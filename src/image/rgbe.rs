@@ -7,7 +7,7 @@ use std::path::Path;
 use anyhow::{bail, ensure, Context, Result};
 use glam::Vec3;
 
-use super::write_atomically;
+use super::{write_atomically, MAX_PIXELS, MAX_SIDE};
 use crate::scene::Texture;
 
 // Scanlines of these widths use the "new" run-length encoding; others are
@@ -150,6 +150,14 @@ fn parse(bytes: &[u8]) -> Result<(u32, u32, Vec<Vec3>)> {
         width > 0 && height > 0,
         "picture {width}x{height} has no pixels"
     );
+    // A scanline buffer is allocated from the declared width before any
+    // pixel arrives: a few header bytes declared 16 GB of it.
+    ensure!(
+        width <= MAX_SIDE
+            && height <= MAX_SIDE
+            && u64::from(width) * u64::from(height) <= MAX_PIXELS,
+        "picture {width}x{height} is larger than the {MAX_PIXELS} pixels (8192x8192, no side above {MAX_SIDE}) an image may have here"
+    );
 
     let mut data = bytes.get(used..).unwrap_or_default().iter().copied();
     let mut byte = || data.next().context("pixel data ends early");
@@ -216,6 +224,16 @@ mod tests {
         assert_eq!(encode(Vec3::new(-1.0, f32::NAN, 0.0)), [0; 4]);
         // Powers of two sit at mantissa 128.
         assert_eq!(encode(Vec3::splat(1.0)), [128, 128, 128, 129]);
+    }
+
+    #[test]
+    fn declared_sizes_beyond_the_limits_are_refused_before_allocating() {
+        for size in ["-Y 1 +X 4000000000", "-Y 40000 +X 1", "-Y 10000 +X 10000"] {
+            let mut file = format!("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n{size}\n").into_bytes();
+            file.extend([1, 1, 1, 128]);
+            let e = parse(&file).unwrap_err().to_string();
+            assert!(e.contains("larger than"), "{size}: {e}");
+        }
     }
 
     #[test]

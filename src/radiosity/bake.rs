@@ -15,7 +15,7 @@ use anyhow::{anyhow, bail, ensure, Context, Result};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use crate::scene::hash::{fnv1a64, ContentHash};
+use crate::scene::hash::{fnv1a64, hex, ContentHash};
 use crate::scene::Scene;
 
 use super::temporal::{DecomposeStats, IntervalTest, TimeSeries};
@@ -395,7 +395,7 @@ fn read_checked(dir: &Path, e: &FileEntry, elem: usize, field: &str) -> Result<V
         bytes.len(),
         e.count
     );
-    let sum = format!("{:016x}", fnv1a64(&bytes));
+    let sum = hex(fnv1a64(&bytes));
     ensure!(
         sum == e.fnv1a64,
         "{}: checksum {sum} differs from `{field}.fnv1a64` = {} in {MANIFEST}; the file is corrupt",
@@ -410,7 +410,7 @@ fn file_entry(name: &str, count: usize, bytes: &[u8]) -> FileEntry {
         name: name.to_string(),
         count: count as u64,
         bytes: bytes.len() as u64,
-        fnv1a64: format!("{:016x}", fnv1a64(bytes)),
+        fnv1a64: hex(fnv1a64(bytes)),
     }
 }
 

@@ -603,7 +603,7 @@ fn side_members(simplified: &Simplified, records: &[Entry]) -> Vec<[Vec<u32>; 2]
 mod tests {
     use super::*;
     use crate::radiosity::formfactor::subdivide;
-    use crate::render::rng::Pcg32;
+    use crate::rng::Pcg32;
     use crate::scene::Scene;
 
     /// The Cornell box cut unevenly (each triangle 4-way zero to three

@@ -10,7 +10,7 @@ use std::f32::consts::{FRAC_1_PI, PI};
 
 use glam::{Vec2, Vec3};
 
-use super::rng::Pcg32;
+use crate::rng::Pcg32;
 use crate::scene::{Bsdf, GlossyModel};
 
 /// An orthonormal frame around a unit normal (Duff et al. 2017).

@@ -10,8 +10,8 @@ use glam::{Affine3A, Vec2, Vec3};
 
 use super::bsdf::{Frame, Lobes};
 use super::lights::Lights;
-use super::rng::Pcg32;
 use crate::accel::{offset_origin, Ray, RayEngine};
+use crate::rng::Pcg32;
 use crate::scene::{Object, Scene};
 
 /// Segments after which Russian roulette may end a path.

@@ -295,7 +295,7 @@ impl Lights {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::rng::Pcg32;
+    use crate::rng::Pcg32;
 
     #[test]
     fn sun_samples_lie_in_its_cone_and_cover_it() {

@@ -23,12 +23,11 @@ pub mod bsdf;
 mod integrator;
 mod lights;
 pub mod multipass;
-pub(crate) mod rng;
 pub mod surface;
 
+use crate::rng::Pcg32;
 use integrator::Integrator;
 use lights::Lights;
-use rng::Pcg32;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RenderSettings {

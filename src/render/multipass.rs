@@ -32,12 +32,12 @@ use glam::{Affine3A, Vec2, Vec3};
 use super::bsdf::{Frame, Lobes};
 use super::integrator::{power_heuristic, Integrator};
 use super::lights::Lights;
-use super::rng::Pcg32;
 use super::{first_hits, shade_tiles, Progress, RenderSettings, RenderStats};
 use crate::accel::{offset_origin, Ray, RayEngine};
 use crate::camera::Camera;
 use crate::image::{RangeImage, RangeMeta};
 use crate::radiosity::lookup::IrradianceCache;
+use crate::rng::Pcg32;
 use crate::scene::Scene;
 
 /// Longest path (in segments) when `RenderSettings::max_depth` is `None`:

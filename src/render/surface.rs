@@ -8,8 +8,8 @@ use glam::{Affine3A, Vec2, Vec3};
 
 use super::bsdf::{Frame, Lobes};
 use super::lights::Lights;
-use super::rng::Pcg32;
 use crate::accel::{offset_origin, Hit, Ray, RayEngine};
+use crate::rng::Pcg32;
 use crate::scene::{Bsdf, Scene};
 
 /// A point on triangle `primitive` of `object`, at the shading time.

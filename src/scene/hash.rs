@@ -39,8 +39,14 @@ impl Fnv {
 
     /// The hash as 16 hex digits.
     pub fn hex(&self) -> String {
-        format!("{:016x}", self.0)
+        hex(self.0)
     }
+}
+
+/// A hash as every file here writes it: 16 hex digits, so that checksums
+/// compare as strings.
+pub fn hex(sum: u64) -> String {
+    format!("{sum:016x}")
 }
 
 /// FNV-1a of a byte string.
@@ -117,7 +123,7 @@ impl ContentHash {
             .collect();
         Ok(ContentHash {
             total: total.hex(),
-            text: format!("{:016x}", fnv1a64(&text)),
+            text: hex(fnv1a64(&text)),
             meshes,
             materials,
         })

@@ -15,7 +15,7 @@ use glam::{Quat, Vec2, Vec3};
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::wavefront::{check_obj, strip_texture_options};
+use super::wavefront::{check_obj, prepare_mtl};
 use super::{
     Animation, Bsdf, CameraDesc, Emission, GlossyModel, Keyframe, Light, Material, Mesh, Motion,
     Object, PathKey, Scene, Texture, ViewSpace, WalkPath,
@@ -581,7 +581,8 @@ fn resolve_material(
                 o.name
             )
         })?;
-    let what = format!("{}: MTL material `{mtl_name}`", obj.path.display());
+    let file = obj.mtl_files.get(mtl_name).unwrap_or(&obj.path);
+    let what = format!("{}: MTL material `{mtl_name}`", file.display());
     let texture = match &mtl.diffuse_texture {
         Some(t) => {
             let path = obj.path.parent().unwrap_or(Path::new(".")).join(t);
@@ -598,10 +599,18 @@ fn resolve_material(
         None => None,
     };
     // A texture without `Kd` stands alone (reflectance 1 times the texel).
+    // Neither says nothing of the colour, like an OBJ without materials, so
+    // it gets the same grey (a black surface would be a guess, and a wrong
+    // one for every file that simply leaves `Kd` out).
     let kd = match (mtl.diffuse, &texture) {
         (Some(kd), _) => kd,
         (None, Some(_)) => [1.0; 3],
-        (None, None) => [0.0; 3],
+        (None, None) => {
+            warnings.push(format!(
+                "{what} has neither `Kd` nor a `map_Kd` that can be read: using a diffuse grey of reflectance {DEFAULT_REFLECTANCE}"
+            ));
+            [DEFAULT_REFLECTANCE; 3]
+        }
     };
     finite(&what, "Kd", &kd)?;
     let largest = texture.as_ref().map_or(Vec3::ONE, |t| t.largest_texel());
@@ -617,12 +626,8 @@ fn resolve_material(
     } else {
         kd
     };
-    let ke = mtl
-        .unknown_param
-        .get("Ke")
-        .map(|ke| parse_floats(&what, "Ke", ke))
-        .transpose()?
-        .filter(|e| e.iter().any(|&c| c > 0.0));
+    // tobj reads `Ke` itself (it is no unknown parameter).
+    let ke = mtl.emissive.filter(|e| e.iter().any(|&c| c > 0.0));
     materials.push(Material {
         name: mtl_name.to_string(),
         bsdf: Bsdf::Diffuse {
@@ -632,19 +637,6 @@ fn resolve_material(
         emission: emission(&what, ke, false)?,
     });
     Ok(materials.len() - 1)
-}
-
-fn parse_floats(what: &str, field: &str, s: &str) -> Result<V3> {
-    let v: Vec<f32> = s
-        .split_whitespace()
-        .map(|x| x.parse::<f32>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| anyhow!("{what}: `{field}` \"{s}\" is not three numbers"))?;
-    ensure!(
-        v.len() == 3,
-        "{what}: `{field}` \"{s}\" is not three numbers"
-    );
-    Ok([v[0], v[1], v[2]])
 }
 
 fn build_motion(src: &Source, at: &str, o: &ObjectToml) -> Result<Motion> {
@@ -826,6 +818,8 @@ struct ObjFile {
     path: PathBuf,
     models: Vec<tobj::Model>,
     materials: Vec<tobj::Material>,
+    /// The MTL file each material came from, for messages about it.
+    mtl_files: HashMap<String, PathBuf>,
 }
 
 impl ObjFile {
@@ -849,6 +843,7 @@ impl ObjFile {
         let dir = path.parent().unwrap_or(Path::new("."));
         let mtl_warnings = std::cell::RefCell::new(Vec::new());
         let mtl_error = std::cell::RefCell::new(None);
+        let mtl_files = std::cell::RefCell::new(HashMap::new());
         let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &opts, |name| {
             let mtl = dir.join(name);
             let Ok(text) = std::fs::read_to_string(&mtl) else {
@@ -859,12 +854,25 @@ impl ObjFile {
                 ));
                 return Ok(Default::default());
             };
-            let (text, w) = strip_texture_options(&mtl, &text);
+            let (text, w) = match prepare_mtl(&mtl, &text) {
+                Ok(prepared) => prepared,
+                Err(e) => {
+                    *mtl_error.borrow_mut() = Some(e);
+                    return Err(tobj::LoadError::MaterialParseError);
+                }
+            };
             mtl_warnings.borrow_mut().extend(w);
-            tobj::load_mtl_buf(&mut text.as_bytes()).inspect_err(|e| {
-                *mtl_error.borrow_mut() =
-                    Some(anyhow!("cannot read MTL file {}: {e}", mtl.display()));
-            })
+            tobj::load_mtl_buf(&mut text.as_bytes())
+                .inspect(|(materials, _)| {
+                    let mut files = mtl_files.borrow_mut();
+                    for m in materials {
+                        files.insert(m.name.clone(), mtl.clone());
+                    }
+                })
+                .inspect_err(|e| {
+                    *mtl_error.borrow_mut() =
+                        Some(anyhow!("cannot read MTL file {}: {e}", mtl.display()));
+                })
         })
         .map_err(|e| anyhow!("cannot read mesh {}: {e}", path.display()))?;
         if let Some(e) = mtl_error.into_inner() {
@@ -877,6 +885,7 @@ impl ObjFile {
             path: path.to_path_buf(),
             models,
             materials,
+            mtl_files: mtl_files.into_inner(),
         })
     }
 

@@ -1,9 +1,11 @@
 //! What OBJ and MTL files written by other tools hold that tobj does not
 //! check, or does not read as this renderer needs: faces cut short (tobj
 //! takes a two-index face for a line and drops it), indices out of range
-//! and numbers that do not parse (tobj's errors name no line), and texture
-//! statements with options (`map_Kd -s 2 2 -bm 1 tex.png`), whose options
-//! tobj would take as part of the file name.
+//! and numbers that do not parse (tobj's errors name no line), colours
+//! with other than three numbers (tobj panics on `Kd 1 1`, and refuses the
+//! `Kd 0.5` the format allows), and texture statements with options
+//! (`map_Kd -s 2 2 -bm 1 tex.png`), whose options tobj would take as part
+//! of the file name.
 
 use std::path::Path;
 
@@ -95,15 +97,54 @@ const TEXTURE_STATEMENTS: [&str; 4] = ["bump", "disp", "decal", "refl"];
 /// says so.
 const PLACEMENT_OPTIONS: [&str; 3] = ["-o", "-s", "-t"];
 
-/// The MTL text with the options of its texture statements taken out, so
-/// that only the file name follows `map_Kd` and its kin, and a warning for
-/// every option ignored that changes how the texture looks.
-pub fn strip_texture_options(path: &Path, text: &str) -> (String, Vec<String>) {
+/// Colour statements, which tobj reads as exactly three numbers.
+const COLOUR_STATEMENTS: [&str; 5] = ["Ka", "Kd", "Ks", "Ke", "Tf"];
+
+/// Statements tobj reads as one number.
+const NUMBER_STATEMENTS: [&str; 4] = ["Ns", "Ni", "d", "Tr"];
+
+/// The MTL text as tobj can read it: colours given as one number (`Kd
+/// 0.5`, grey) written out as three, and the options of texture statements
+/// taken out, so that only the file name follows `map_Kd` and its kin; a
+/// warning for every option ignored that changes how the texture looks.
+/// A colour or number that does not parse is an error naming the line.
+pub fn prepare_mtl(path: &Path, text: &str) -> Result<(String, Vec<String>)> {
     let mut out = String::with_capacity(text.len());
     let mut warnings = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace().peekable();
         let keyword = words.next().unwrap_or("");
+        let at = || format!("{}:{}", path.display(), i + 1);
+        if COLOUR_STATEMENTS.contains(&keyword) || NUMBER_STATEMENTS.contains(&keyword) {
+            let values: Vec<&str> = words.collect();
+            let numbers = values.iter().all(|w| w.parse::<f32>().is_ok());
+            let colour = COLOUR_STATEMENTS.contains(&keyword);
+            match (colour, values.len()) {
+                _ if !numbers
+                    && colour
+                    && matches!(values.first(), Some(&("xyz" | "spectral"))) =>
+                {
+                    bail!(
+                        "{}: `{}`: CIE XYZ and spectral colours are not supported; give `{keyword} r g b`",
+                        at(),
+                        line.trim()
+                    )
+                }
+                _ if !numbers => bail!("{}: `{}`: not a number", at(), line.trim()),
+                (true, 1) => out.push_str(&format!("{keyword} {0} {0} {0}\n", values[0])),
+                (true, 3) | (false, 1) => {
+                    out.push_str(line);
+                    out.push('\n');
+                }
+                (true, n) => bail!(
+                    "{}: `{}` with {n} numbers (expected 1 or 3)",
+                    at(),
+                    line.trim()
+                ),
+                (false, n) => bail!("{}: `{}` with {n} numbers (expected 1)", at(), line.trim()),
+            }
+            continue;
+        }
         let is_texture = keyword.starts_with("map_") || TEXTURE_STATEMENTS.contains(&keyword);
         if !is_texture || !line.contains(" -") {
             out.push_str(line);
@@ -141,7 +182,7 @@ pub fn strip_texture_options(path: &Path, text: &str) -> (String, Vec<String>) {
         out.push_str(&file.join(" "));
         out.push('\n');
     }
-    (out, warnings)
+    Ok((out, warnings))
 }
 
 fn is_option_argument(word: &str, option: &str) -> bool {
@@ -190,7 +231,7 @@ mod tests {
     fn texture_options_are_taken_out() {
         let mtl = "newmtl a\nKd 0.5 0.5 0.5\nmap_Kd -c on -texres 512 -bm 0.5 wood grain.png\n\
                    map_Ks -s 2 2 1 -o 0.5 0.5 spec.png\nbump -imfchan l b.png\nmap_Kd plain.png\n";
-        let (text, warnings) = strip_texture_options(Path::new("a.mtl"), mtl);
+        let (text, warnings) = prepare_mtl(Path::new("a.mtl"), mtl).unwrap();
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines[2], "map_Kd wood grain.png");
         assert_eq!(lines[3], "map_Ks spec.png");
@@ -198,5 +239,28 @@ mod tests {
         assert_eq!(lines[5], "map_Kd plain.png");
         assert_eq!(warnings.len(), 1, "{warnings:?}");
         assert!(warnings[0].contains("a.mtl:4") && warnings[0].contains("-s -o"));
+    }
+
+    /// `Kd 1 1` once panicked inside tobj (found by fuzzing).
+    #[test]
+    fn colours_are_one_or_three_numbers() {
+        let prepare = |text: &str| prepare_mtl(Path::new("a.mtl"), text);
+        let (text, _) = prepare("newmtl a\nKd 0.5\nKs 0.1 0.2 0.3\nNs 10\n").unwrap();
+        assert_eq!(text, "newmtl a\nKd 0.5 0.5 0.5\nKs 0.1 0.2 0.3\nNs 10\n");
+        for (text, needle) in [
+            ("newmtl a\nKd 101 1\n", "a.mtl:2: `Kd 101 1` with 2 numbers"),
+            ("Ke\n", "a.mtl:1: `Ke` with 0 numbers"),
+            ("Kd 1 1 1 1\n", "with 4 numbers"),
+            ("Kd xyz 0.1 0.2 0.3\n", "CIE XYZ"),
+            (
+                "Kd 0.5 red 0.5\n",
+                "a.mtl:1: `Kd 0.5 red 0.5`: not a number",
+            ),
+            ("Ns\n", "`Ns` with 0 numbers (expected 1)"),
+            ("d 0.5 0.5\n", "expected 1"),
+        ] {
+            let e = prepare(text).unwrap_err().to_string();
+            assert!(e.contains(needle), "`{needle}` not in: {e}");
+        }
     }
 }

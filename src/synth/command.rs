@@ -141,6 +141,10 @@ pub struct SynthArgs {
 
 pub fn synth(args: &SynthArgs) -> Result<()> {
     let options = args.synth.options()?;
+    image::check_output("--out", &args.out, image::OutputKind::Exr)?;
+    if let Some(p) = &args.preview {
+        image::check_output("--preview", p, image::OutputKind::Png)?;
+    }
     let (scene, bake) = args.synth.open(&args.bake)?;
     let desc = match &args.path {
         Some(p) => scene.path(p)?.at(args.time),
@@ -217,6 +221,7 @@ pub struct WalkArgs {
 
 pub fn walk(args: &WalkArgs) -> Result<()> {
     let options = args.synth.options()?;
+    image::check_output_dir("--out", &args.out)?;
     let (scene, bake) = args.synth.open(&args.bake)?;
     let mut synth = Synthesizer::new(&scene, &bake, args.synth.base_memory << 20);
     let settings = WalkSettings {

@@ -149,6 +149,12 @@ pub fn view(args: &ViewArgs) -> Result<()> {
 /// Opens the window and runs until the frames are done or it is closed.
 pub fn run(args: &ViewArgs) -> Result<ViewSummary> {
     let options = args.synth.options()?;
+    if let Some(p) = &args.screenshot {
+        crate::image::check_output("--screenshot", p, crate::image::OutputKind::Png)?;
+    }
+    if let Some(dir) = &args.record {
+        crate::image::check_output_dir("--record", dir)?;
+    }
     let (scene, bake) = args.synth.open(&args.bake)?;
     let scene = Arc::new(scene);
     let fps = args.fps.unwrap_or(scene.animation.fps);

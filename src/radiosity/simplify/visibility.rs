@@ -10,6 +10,7 @@ use rayon::prelude::*;
 
 use super::params::{TRIALS, VIEWS_PER_TRIAL};
 use crate::accel::{InstancedEngine, Ray, RayEngine};
+use crate::rng::{SplitMix64, GOLDEN};
 use crate::scene::{Scene, ViewSpace};
 
 /// Half-angle of the cone of rays around a camera's direction when the
@@ -123,26 +124,18 @@ fn cone_dir(axis: Vec3, cos_max: f32, rng: &mut Rng) -> Vec3 {
 
 /// SplitMix64: tiny, and one stream per (seed, view) keeps counts
 /// independent of the thread that traces a view.
-struct Rng(u64);
+struct Rng(SplitMix64);
 
 impl Rng {
     fn new(seed: u64, stream: u64) -> Rng {
-        let mut r = Rng(seed ^ stream.wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        let mut r = SplitMix64::new(seed ^ stream.wrapping_mul(GOLDEN));
         r.next_u64();
-        r
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
+        Rng(r)
     }
 
     /// Uniform in `[0, 1)`.
     fn next(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 * (1.0 / 16_777_216.0)
+        self.0.next_f32()
     }
 }
 

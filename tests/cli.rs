@@ -163,7 +163,10 @@ fn every_command_checks_its_outputs_first() {
     let file = p("a-file");
     std::fs::write(&file, "").unwrap();
     let (txt, x, png_as_exr, plan_txt) = (p("x.txt"), p("x.exr"), p("p.exr"), p("plan.txt"));
-    let missing = "/nonexistent/dir/out";
+    // Output folders are made with their parents; one under a file cannot be.
+    let missing = format!("{file}/dir/out");
+    let missing = missing.as_str();
+    let blocked = "a-file is not a folder";
     let gone = "folder /nonexistent/dir does not exist";
     let exr = "/nonexistent/dir/x.exr";
     let cases: Vec<(Vec<&str>, &str)> = vec![
@@ -184,7 +187,7 @@ fn every_command_checks_its_outputs_first() {
         ),
         (
             vec!["walk", &bake, "--path", "walk", "--out", missing],
-            gone,
+            blocked,
         ),
         (
             vec!["walk", &bake, "--path", "walk", "--out", &file],
@@ -192,7 +195,7 @@ fn every_command_checks_its_outputs_first() {
         ),
         (
             vec!["bake", &scene, "--quality", "0.5", "--out", missing],
-            gone,
+            blocked,
         ),
         (
             vec![
@@ -205,10 +208,10 @@ fn every_command_checks_its_outputs_first() {
             ],
             "cannot create files in /proc",
         ),
-        (vec!["radiosity", &scene, "--out", missing], gone),
+        (vec!["radiosity", &scene, "--out", missing], blocked),
         (
             vec!["export", &scene, "--format", "mitsuba", "--out", missing],
-            gone,
+            blocked,
         ),
         (
             vec!["plan", &scene, "--quality", "0.5", "--out", &plan_txt],
@@ -236,14 +239,20 @@ fn every_command_checks_its_outputs_first() {
                 "--out",
                 missing,
             ],
-            gone,
+            blocked,
         ),
         (
             vec!["experiment", "indirect", &scene, "--out", missing],
-            gone,
+            blocked,
         ),
-        (vec!["experiment", "views", &scene, "--out", missing], gone),
-        (vec!["experiment", "motion", &scene, "--out", missing], gone),
+        (
+            vec!["experiment", "views", &scene, "--out", missing],
+            blocked,
+        ),
+        (
+            vec!["experiment", "motion", &scene, "--out", missing],
+            blocked,
+        ),
         (
             vec![
                 "experiment",
@@ -254,13 +263,13 @@ fn every_command_checks_its_outputs_first() {
                 "--out",
                 missing,
             ],
-            gone,
+            blocked,
         ),
         (
             vec!["view", &bake, "--screenshot", "/nonexistent/dir/s.png"],
             gone,
         ),
-        (vec!["view", &bake, "--record", missing], gone),
+        (vec!["view", &bake, "--record", missing], blocked),
         (
             vec![
                 "render",
@@ -272,7 +281,7 @@ fn every_command_checks_its_outputs_first() {
                 "--bake",
                 missing,
             ],
-            gone,
+            blocked,
         ),
     ];
     for (args, needle) in &cases {

@@ -63,8 +63,10 @@ pub fn check_output(flag: &str, path: &Path, kind: OutputKind) -> Result<()> {
 }
 
 /// Checks that the folder `path` (given with `flag`) can be written: it
-/// is a folder files can be created in, or it does not exist yet and can
-/// be created in its parent, which must exist.
+/// is a folder files can be created in, or it does not exist yet and its
+/// nearest existing ancestor is a folder it can be created in (commands
+/// make output folders with their parents, as `mkdir -p`, so that
+/// `--out out/run` works in a fresh checkout).
 pub fn check_output_dir(flag: &str, path: &Path) -> Result<()> {
     if path.exists() {
         if !path.is_dir() {
@@ -72,18 +74,20 @@ pub fn check_output_dir(flag: &str, path: &Path) -> Result<()> {
         }
         return check_writable(flag, path, path);
     }
-    let parent = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !parent.is_dir() {
-        bail!(
-            "{flag} {}: the folder {} does not exist",
-            path.display(),
-            parent.display()
-        );
+    let mut ancestor = path.parent();
+    while let Some(d) = ancestor {
+        if d.as_os_str().is_empty() {
+            return check_writable(flag, path, Path::new("."));
+        }
+        if d.exists() {
+            if !d.is_dir() {
+                bail!("{flag} {}: {} is not a folder", path.display(), d.display());
+            }
+            return check_writable(flag, path, d);
+        }
+        ancestor = d.parent();
     }
-    check_writable(flag, path, parent)
+    check_writable(flag, path, Path::new("."))
 }
 
 /// Whether a file can be created in `dir`, found by creating and removing
@@ -118,12 +122,20 @@ mod tests {
         check_output_dir("--out", &new).unwrap();
         assert!(!new.exists(), "the check created the folder");
         check_output_dir("--out", d.path()).unwrap();
-        let e = check_output_dir("--out", &new.join("deeper")).unwrap_err();
-        assert!(e.to_string().contains("does not exist"), "{e}");
+        // Missing parents are made with the folder, as `mkdir -p`.
+        check_output_dir("--out", &new.join("deeper")).unwrap();
+        assert!(!new.exists(), "the check created a parent");
         let file = d.path().join("f");
         std::fs::write(&file, "").unwrap();
         let e = check_output_dir("--out", &file).unwrap_err();
         assert!(e.to_string().contains("not a folder"), "{e}");
+        let e = check_output_dir("--out", &file.join("under")).unwrap_err();
+        assert!(e.to_string().contains("is not a folder"), "{e}");
+        let e = check_output_dir("--out", Path::new("/proc/rangewalk/deeper")).unwrap_err();
+        assert!(
+            format!("{e:#}").contains("cannot create files in /proc"),
+            "{e:#}"
+        );
         let e = check_output("--out", d.path(), OutputKind::Json).unwrap_err();
         assert!(e.to_string().contains("`.`"), "{e}");
         let e = check_output("--out", &d.path().join("p.txt"), OutputKind::Json).unwrap_err();

@@ -17,6 +17,7 @@ pub mod bake;
 pub mod camera;
 #[allow(unsafe_code)]
 pub mod capi;
+pub mod checksum;
 #[cfg(feature = "embree")]
 #[allow(unsafe_code)]
 mod embree;

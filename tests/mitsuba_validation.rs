@@ -25,8 +25,9 @@ use std::sync::Arc;
 
 use glam::Vec2;
 use rangewalk::camera::Projection;
+use rangewalk::image::Texture;
 use rangewalk::scene::{
-    Animation, Bsdf, GlossyModel, Light, Material, Mesh, Motion, Object, Scene, Texture,
+    Animation, Bsdf, GlossyModel, Light, Material, Mesh, Motion, Object, Scene,
 };
 
 const BLOCK: usize = 8;

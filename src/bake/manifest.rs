@@ -14,9 +14,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
+pub use crate::checksum::hex;
 use crate::image;
 use crate::plan::Plan;
-pub use crate::scene::hash::hex;
 use crate::scene::hash::ContentHash;
 
 use super::Settings;

@@ -25,6 +25,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::accel::{Backend, InstancedEngine};
 use crate::camera::{Camera, Projection};
+use crate::checksum::Fnv;
 use crate::image::{self, RangeImage};
 use crate::plan::Plan;
 use crate::radiosity::lookup::IrradianceCache;
@@ -32,7 +33,7 @@ use crate::radiosity::temporal::TimeSeries;
 use crate::radiosity::{self, bake as radiosity_bake, Quality, Simplified};
 use crate::render::multipass::{self, Indirect};
 use crate::render::{Progress, RenderSettings};
-use crate::scene::hash::{ContentHash, Fnv};
+use crate::scene::hash::ContentHash;
 use crate::scene::Scene;
 
 pub mod manifest;

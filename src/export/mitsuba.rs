@@ -33,7 +33,8 @@ use anyhow::{bail, Context, Result};
 use glam::Vec3;
 
 use crate::camera::{Camera, Projection};
-use crate::scene::{Bsdf, GlossyModel, Light, Material, Scene, Texture};
+use crate::image::Texture;
+use crate::scene::{Bsdf, GlossyModel, Light, Material, Scene};
 
 /// How many scene radii away the sun's disk is placed.
 const SUN_DISTANCE_RADII: f32 = 1e4;

@@ -8,8 +8,8 @@ use anyhow::{anyhow, bail, ensure, Context, Result};
 use exr::prelude::*;
 
 use super::planes::{Attr, Plane, Planes};
+use super::Texture;
 use super::{write_atomically, RangeImage, MAX_PIXELS};
-use crate::scene::Texture;
 
 /// Writes `image` as a single-part, ZIP-compressed EXR, atomically.
 pub fn write(path: impl AsRef<Path>, image: &RangeImage) -> Result<()> {

@@ -23,7 +23,6 @@ use anyhow::{ensure, Context, Result};
 use glam::Vec3;
 
 use crate::camera::Camera;
-use crate::scene::Texture;
 
 mod color;
 pub mod exr_io;
@@ -34,9 +33,11 @@ mod output;
 mod planes;
 pub mod png_io;
 pub mod rgbe;
+mod texture;
 
 pub use color::tonemap_srgb8;
 pub use output::{check_output, check_output_dir, OutputKind};
+pub use texture::Texture;
 
 /// Object/primitive id of a pixel whose ray hit nothing.
 pub const NO_HIT: u32 = u32::MAX;

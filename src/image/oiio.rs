@@ -7,7 +7,7 @@ use anyhow::{anyhow, Result};
 use rayon::prelude::*;
 
 use super::planes::{Attr, Plane, Planes};
-use crate::scene::Texture;
+use super::Texture;
 
 #[cxx::bridge(namespace = "rangewalk::oiio")]
 mod ffi {

@@ -10,10 +10,10 @@ use anyhow::{anyhow, bail, ensure, Context, Result};
 use glam::Vec3;
 
 use super::color::srgb_decode;
+use super::Texture;
 use super::{RangeImage, RangeMeta};
 use crate::camera::{Camera, Projection};
-use crate::scene::hash::Fnv;
-use crate::scene::Texture;
+use crate::checksum::Fnv;
 
 /// One channel's samples, row-major, top row first.
 #[derive(Clone, Debug, PartialEq)]

@@ -9,7 +9,7 @@ use glam::Vec3;
 
 use super::color::srgb_decode;
 use super::write_atomically;
-use crate::scene::Texture;
+use super::Texture;
 
 /// Writes 8-bit sRGB pixels (`RGBRGB...`, top row first), tagged as sRGB,
 /// atomically.

@@ -7,8 +7,8 @@ use std::path::Path;
 use anyhow::{bail, ensure, Context, Result};
 use glam::Vec3;
 
+use super::Texture;
 use super::{write_atomically, MAX_PIXELS, MAX_SIDE};
-use crate::scene::Texture;
 
 // Scanlines of these widths use the "new" run-length encoding; others are
 // stored flat, as Radiance does.

@@ -15,7 +15,8 @@ use anyhow::{anyhow, bail, ensure, Context, Result};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use crate::scene::hash::{fnv1a64, hex, ContentHash};
+use crate::checksum::{fnv1a64, hex};
+use crate::scene::hash::ContentHash;
 use crate::scene::Scene;
 
 use super::temporal::{DecomposeStats, IntervalTest, TimeSeries};

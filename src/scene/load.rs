@@ -18,8 +18,9 @@ use toml::Spanned;
 use super::wavefront::{check_obj, prepare_mtl};
 use super::{
     Animation, Bsdf, CameraDesc, Emission, GlossyModel, Keyframe, Light, Material, Mesh, Motion,
-    Object, PathKey, Scene, Texture, ViewSpace, WalkPath,
+    Object, PathKey, Scene, ViewSpace, WalkPath,
 };
+use crate::image::Texture;
 
 type V3 = [f32; 3];
 

@@ -140,7 +140,7 @@ pub fn trace(
 }
 
 /// Per object: whether it emits light.
-fn emissive(scene: &Scene) -> Vec<bool> {
+pub(super) fn emissive(scene: &Scene) -> Vec<bool> {
     (0..scene.objects.len() as u32)
         .map(|o| scene.material_of(o).emission.is_some())
         .collect()

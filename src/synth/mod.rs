@@ -285,6 +285,7 @@ impl<'a> Synthesizer<'a> {
                 (camera, k, &f.meta),
                 seen,
                 |j| f.radiance[j],
+                |j| f.object_id[j],
                 |j| {
                     (
                         f.distance[j],
@@ -303,6 +304,7 @@ impl<'a> Synthesizer<'a> {
                     (camera, k, &meta),
                     seen,
                     |j| buffer[j].radiance / buffer[j].w,
+                    |j| buffer[j].object,
                     |j| surface(self.scene, &poses, cam, &buffer[j]),
                 )
             }
@@ -547,8 +549,8 @@ pub const MAX_SUPERSAMPLE: u32 = 4;
 
 /// A frame of `camera` (with `meta`) from its synthesis at `k` × `k`
 /// subpixels a pixel: subpixel `j` was reached by some sample (`seen`),
-/// holds `radiance(j)` and shows `surface(j)` (distance, object,
-/// primitive, normal). A pixel's radiance is the mean of its seen
+/// holds `radiance(j)` and shows object `object(j)`, whose surface is
+/// `surface(j)` (distance, object, primitive, normal). A pixel's radiance is the mean of its seen
 /// subpixels; its surface that of the seen subpixel nearest its centre,
 /// with the distance where its centre ray meets that surface's triangle
 /// (at `poses`), as a render's would be; a pixel none reached is a hole. A
@@ -561,6 +563,7 @@ fn downsample(
     (camera, k, meta): (&Camera, u32, &RangeMeta),
     seen: impl Fn(usize) -> bool + Sync,
     radiance: impl Fn(usize) -> Vec3 + Sync,
+    object: impl Fn(usize) -> u32 + Sync,
     surface: impl Fn(usize) -> (f32, u32, u32, Vec3) + Sync,
 ) -> (RangeImage, usize) {
     let mut image = RangeImage::empty(RangeMeta {
@@ -569,9 +572,7 @@ fn downsample(
     });
     let (w, k) = (camera.width as usize, k as usize);
     let fw = w * k;
-    let emissive: Vec<bool> = (0..scene.objects.len() as u32)
-        .map(|o| scene.material_of(o).emission.is_some())
-        .collect();
+    let emissive = lights::emissive(scene);
     let emits = |id: u32| emissive.get(id as usize).copied().unwrap_or(false);
     // Subpixel offsets, nearest the pixel's centre first.
     let mut order: Vec<(usize, usize)> = (0..k * k).map(|i| (i % k, i / k)).collect();
@@ -588,33 +589,36 @@ fn downsample(
         .zip(image.primitive_id.par_iter_mut())
         .zip(image.normal.par_iter_mut())
         .enumerate()
-        .map(|(i, ((((pixel, distance), object), primitive), normal))| {
-            let (x, y) = (i % w, i / w);
-            let at = |(dx, dy): (usize, usize)| (y * k + dy) * fw + x * k + dx;
-            let (mut sum, mut n, mut shown, mut light) = (Vec3::ZERO, 0u32, None, None);
-            for &o in &order {
-                let j = at(o);
-                if !seen(j) {
-                    continue;
+        .map(
+            |(i, ((((pixel, distance), shown_object), primitive), normal))| {
+                let (x, y) = (i % w, i / w);
+                let at = |(dx, dy): (usize, usize)| (y * k + dy) * fw + x * k + dx;
+                let (mut sum, mut n, mut shown, mut light) = (Vec3::ZERO, 0u32, None, None);
+                for &o in &order {
+                    let j = at(o);
+                    if !seen(j) {
+                        continue;
+                    }
+                    sum += radiance(j);
+                    n += 1;
+                    shown.get_or_insert(j);
+                    if light.is_none() && emits(object(j)) {
+                        light = Some(j);
+                    }
                 }
-                sum += radiance(j);
-                n += 1;
-                let s = surface(j);
-                shown.get_or_insert(s);
-                if light.is_none() && emits(s.1) {
-                    light = Some(s);
+                let Some(j) = light.or(shown) else {
+                    return 1;
+                };
+                *pixel = sum / n as f32;
+                (*distance, *shown_object, *primitive, *normal) = surface(j);
+                if let Some(d) =
+                    centre_distance(scene, poses, camera, x, y, *shown_object, *primitive)
+                {
+                    *distance = d;
                 }
-            }
-            let Some(s) = light.or(shown) else {
-                return 1;
-            };
-            *pixel = sum / n as f32;
-            (*distance, *object, *primitive, *normal) = s;
-            if let Some(d) = centre_distance(scene, poses, camera, x, y, *object, *primitive) {
-                *distance = d;
-            }
-            0
-        })
+                0
+            },
+        )
         .sum();
     (image, holes)
 }

@@ -10,7 +10,7 @@ use anyhow::{ensure, Result};
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::accel::Ray;
+use crate::ray::Ray;
 
 /// How directions around the camera are laid out on the image.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

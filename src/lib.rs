@@ -14,6 +14,7 @@
 
 pub mod accel;
 pub mod bake;
+pub mod bsdf;
 pub mod camera;
 #[allow(unsafe_code)]
 pub mod capi;
@@ -26,6 +27,7 @@ pub mod export;
 pub mod image;
 pub mod plan;
 pub mod radiosity;
+pub mod ray;
 pub mod render;
 pub mod rng;
 pub mod scene;

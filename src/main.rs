@@ -440,16 +440,7 @@ fn render_multipass(
 
 /// A bake made for this scene (at quality `q`, if given).
 fn load_bake(s: &Scene, dir: &Path, q: Option<Quality>) -> Result<(Simplified, TimeSeries)> {
-    let (simplified, series, info) = radiosity_bake::load_for(dir, s)?;
-    if let Some(q) = q.filter(|q| q.get() != info.quality) {
-        bail!(
-            "{} was baked at quality {}, not {}: pass --quality {} or another --bake directory",
-            dir.display(),
-            info.quality,
-            q.get(),
-            info.quality
-        );
-    }
+    let (simplified, series, info) = radiosity_bake::load_for(dir, s, q)?;
     eprintln!(
         "using the bake in {} (quality {}, {} solutions)",
         dir.display(),

@@ -10,8 +10,10 @@
 
 use glam::{Affine3A, DVec3, Quat, Vec3};
 use proptest::prelude::*;
-use rangewalk::accel::{self, offset_origin, Backend, Hit, InstancedEngine, MeshGeometry, Ray};
+use rangewalk::accel::{self, offset_origin, Backend, Hit, InstancedEngine};
+use rangewalk::ray::Ray;
 use rangewalk::rng::SplitMix64;
+use rangewalk::scene::MeshGeometry;
 
 // ---------------------------------------------------------------------------
 // Helpers: a seeded generator, approximate assertions, engines per backend.

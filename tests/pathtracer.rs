@@ -6,9 +6,9 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 use rangewalk::accel::{self, Backend};
+use rangewalk::bsdf::Lobes;
 use rangewalk::camera::{Camera, Projection};
 use rangewalk::image::{RangeImage, NO_HIT};
-use rangewalk::render::bsdf::Lobes;
 use rangewalk::render::{render, RenderSettings, RenderStats};
 use rangewalk::scene::{Bsdf, Emission, GlossyModel, Light, Scene};
 

@@ -6,11 +6,12 @@ use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
-use rangewalk::accel::{self, offset_origin, Backend, InstancedEngine, Ray, RayEngine};
+use rangewalk::accel::{self, offset_origin, Backend, InstancedEngine, RayEngine};
 use rangewalk::radiosity::formfactor::triangle_to_triangle;
 use rangewalk::radiosity::{
     diffuse_albedo, solve, IndirectSolution, Patch, Quality, RecordPoint, Simplified,
 };
+use rangewalk::ray::Ray;
 use rangewalk::scene::{Light, Scene};
 use rayon::prelude::*;
 
@@ -163,7 +164,7 @@ fn glossy_furnaces_keep_all_reflected_light() {
 /// uniform sampling of both directions and the BSDF's evaluation alone
 /// (independent of the lobes' samplers).
 fn white_sky_albedo(bsdf: &rangewalk::scene::Bsdf) -> (f32, f32) {
-    use rangewalk::render::bsdf::Lobes;
+    use rangewalk::bsdf::Lobes;
     let lobes = Lobes::at(bsdf, None);
     let mut rng = Rng(11);
     let mut uniform = || {

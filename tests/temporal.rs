@@ -6,9 +6,10 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use glam::Vec3;
-use rangewalk::accel::{self, Backend, Ray, RayEngine};
+use rangewalk::accel::{self, Backend, RayEngine};
 use rangewalk::radiosity::temporal::{compare, decompose_with, Thresholds, TimeSeries};
 use rangewalk::radiosity::{IndirectSolution, Quality, Simplified, SolveStats};
+use rangewalk::ray::Ray;
 use rangewalk::scene::{Motion, Scene};
 
 fn cornell() -> Scene {

@@ -33,7 +33,9 @@ use rayon::prelude::*;
 
 use self::node::{intersect_node, NodeRay};
 use self::triangle::ShearedRay;
-use super::{Hit, InstancedEngine, MeshGeometry, Ray, RayEngine};
+use super::{Hit, InstancedEngine, RayEngine};
+use crate::ray::Ray;
+use crate::scene::MeshGeometry;
 
 /// Deepest hierarchy obvhs' fixed traversal stack holds: it keeps one entry
 /// per level and silently overwrites the last one when full.

@@ -2,10 +2,12 @@
 use anyhow::Result;
 use glam::{Affine3A, Mat3A, Vec3};
 
-use super::{Hit, InstancedEngine, MeshGeometry, Ray, RayEngine};
+use super::{Hit, InstancedEngine, RayEngine};
 use crate::embree::{
     self, Device, InstancedScene, RTCRay16, RTCRayHit, RTCRayHit16, Valid16, INVALID_ID, PACKET,
 };
+use crate::ray::Ray;
+use crate::scene::MeshGeometry;
 
 pub struct EmbreeEngine {
     scene: InstancedScene,

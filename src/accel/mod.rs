@@ -9,43 +9,12 @@
 use anyhow::Result;
 use glam::{Affine3A, Vec3};
 
+use crate::ray::Ray;
+use crate::scene::MeshGeometry;
+
 pub mod bvh;
 #[cfg(feature = "embree")]
 pub mod embree;
-
-/// A ray segment `origin + t * dir` for `t` in `[tmin, tmax]`.
-/// `dir` need not be normalized; `t` of a hit is in units of `dir`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Ray {
-    pub origin: Vec3,
-    pub dir: Vec3,
-    pub tmin: f32,
-    pub tmax: f32,
-}
-
-impl Ray {
-    pub fn new(origin: Vec3, dir: Vec3) -> Self {
-        Self {
-            origin,
-            dir,
-            tmin: 0.0,
-            tmax: f32::INFINITY,
-        }
-    }
-
-    pub fn segment(origin: Vec3, dir: Vec3, tmax: f32) -> Self {
-        Self {
-            origin,
-            dir,
-            tmin: 0.0,
-            tmax,
-        }
-    }
-
-    pub fn at(&self, t: f32) -> Vec3 {
-        self.origin + self.dir * t
-    }
-}
 
 /// The closest intersection of a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -62,13 +31,6 @@ pub struct Hit {
     /// World-space geometric normal, normalized, oriented by the triangle's
     /// winding: `(v1 - v0) x (v2 - v0)`.
     pub normal: Vec3,
-}
-
-/// Object-space triangle mesh as the ray engines consume it.
-#[derive(Clone, Debug, Default)]
-pub struct MeshGeometry {
-    pub positions: Vec<Vec3>,
-    pub triangles: Vec<[u32; 3]>,
 }
 
 /// Ray queries against a committed scene. Implementations are safe to share

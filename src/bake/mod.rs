@@ -501,7 +501,7 @@ fn radiosity_stage(
 ) -> Result<(Simplified, TimeSeries, Option<f64>)> {
     let path = dir.join(manifest::RADIOSITY);
     if path.join(radiosity_bake::MANIFEST).exists() {
-        let (simplified, series, _) = radiosity_bake::load_for(&path, scene)?;
+        let (simplified, series, _) = radiosity_bake::load_for(&path, scene, Some(quality))?;
         return Ok((simplified, series, None));
     }
     let start = Instant::now();

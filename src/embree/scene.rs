@@ -9,7 +9,8 @@ use glam::{Affine3A, Vec3};
 use super::device::Device;
 use super::fpenv::call_ftz;
 use super::raw;
-use crate::accel::{MeshGeometry, Ray};
+use crate::ray::Ray;
+use crate::scene::MeshGeometry;
 
 /// The id Embree uses for "no geometry" (`RTC_INVALID_GEOMETRY_ID`, a cast
 /// macro bindgen cannot translate).

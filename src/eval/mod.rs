@@ -14,6 +14,7 @@ mod staging;
 pub mod summary;
 pub mod synthesis;
 pub mod views;
+pub mod walkcheck;
 pub mod walkthrough;
 
 /// The experiments of `rangewalk experiment`.

@@ -8,9 +8,10 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::accel::{Ray, RayEngine};
+use crate::accel::RayEngine;
 use crate::camera::Camera;
 use crate::image::NO_HIT;
+use crate::ray::Ray;
 
 /// Rows traced per batch: enough rays for the engines' batch paths to pay,
 /// few enough that both cores get work at the small sizes planning uses.

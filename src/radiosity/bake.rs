@@ -20,7 +20,7 @@ use crate::scene::hash::ContentHash;
 use crate::scene::Scene;
 
 use super::temporal::{DecomposeStats, IntervalTest, TimeSeries};
-use super::{IndirectSolution, Patch, RecordPoint, Simplified, SimplifyStats, SolveStats};
+use super::{IndirectSolution, Patch, Quality, RecordPoint, Simplified, SimplifyStats, SolveStats};
 
 /// Identifies a bake manifest.
 pub const FORMAT: &str = "rangewalk-bake";
@@ -197,9 +197,14 @@ pub fn load(dir: &Path) -> Result<(Simplified, TimeSeries)> {
     load_with_info(dir).map(|(s, t, _)| (s, t))
 }
 
-/// [`load_with_info`] for `scene`: a bake solved for a scene whose text,
-/// meshes or materials differ is an error saying what differs.
-pub fn load_for(dir: &Path, scene: &Scene) -> Result<(Simplified, TimeSeries, BakeInfo)> {
+/// [`load_with_info`] for `scene` (and, when given, `quality`): a bake
+/// solved for a scene whose text, meshes or materials differ, or at
+/// another quality, is an error saying what differs.
+pub fn load_for(
+    dir: &Path,
+    scene: &Scene,
+    quality: Option<Quality>,
+) -> Result<(Simplified, TimeSeries, BakeInfo)> {
     let (simplified, series, info) = load_with_info(dir)?;
     let changes = info.scene_hash.differences(&ContentHash::of(scene)?);
     ensure!(
@@ -210,6 +215,15 @@ pub fn load_for(dir: &Path, scene: &Scene) -> Result<(Simplified, TimeSeries, Ba
         scene.source.display(),
         changes.join(", ")
     );
+    if let Some(q) = quality.filter(|q| q.get() != info.quality) {
+        bail!(
+            "{} was baked at quality {}, not {}: pass --quality {} or another bake directory",
+            dir.display(),
+            info.quality,
+            q.get(),
+            info.quality
+        );
+    }
     Ok((simplified, series, info))
 }
 

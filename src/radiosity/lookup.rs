@@ -528,7 +528,7 @@ fn fit_gradient(
     if n == Vec3::ZERO || !n.is_finite() {
         return [Vec3::ZERO; 3];
     }
-    let frame = crate::render::bsdf::Frame::new(n);
+    let frame = crate::bsdf::Frame::new(n);
     // Normal equations of the 2D fit, accumulated in f64.
     let (mut sxx, mut sxy, mut syy) = (0.0f64, 0.0f64, 0.0f64);
     let mut bx = glam::DVec3::ZERO;

@@ -19,7 +19,7 @@ use std::collections::HashMap;
 use anyhow::{ensure, Result};
 use glam::Vec3;
 
-use crate::render::bsdf::Lobes;
+use crate::bsdf::Lobes;
 use crate::scene::{Bsdf, Scene};
 
 pub mod bake;

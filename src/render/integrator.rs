@@ -8,9 +8,10 @@
 
 use glam::{Affine3A, Vec2, Vec3};
 
-use super::bsdf::{Frame, Lobes};
 use super::lights::Lights;
-use crate::accel::{offset_origin, Ray, RayEngine};
+use crate::accel::{offset_origin, RayEngine};
+use crate::bsdf::{Frame, Lobes};
+use crate::ray::Ray;
 use crate::rng::Pcg32;
 use crate::scene::{Object, Scene};
 

@@ -7,7 +7,8 @@ use std::f32::consts::PI;
 
 use glam::Vec3;
 
-use crate::accel::{offset_origin, Ray};
+use crate::accel::offset_origin;
+use crate::ray::Ray;
 use crate::scene::{Light, Scene};
 
 enum Entry {
@@ -62,7 +63,7 @@ impl Sun {
         let cos_t = 1.0 - z;
         let sin_t = (z * (2.0 - z)).max(0.0).sqrt();
         let (sp, cp) = (2.0 * PI * u2).sin_cos();
-        let f = super::bsdf::Frame::new(self.direction);
+        let f = crate::bsdf::Frame::new(self.direction);
         f.to_world(Vec3::new(sin_t * cp, sin_t * sp, cos_t))
             .normalize()
     }

@@ -14,12 +14,12 @@ use glam::{DVec3, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
-use crate::accel::{Ray, RayEngine};
+use crate::accel::RayEngine;
 use crate::camera::Camera;
 use crate::image::{RangeImage, RangeMeta};
+use crate::ray::Ray;
 use crate::scene::Scene;
 
-pub mod bsdf;
 mod integrator;
 mod lights;
 pub mod multipass;

@@ -29,14 +29,15 @@ use std::time::Instant;
 use anyhow::{ensure, Result};
 use glam::{Affine3A, Vec2, Vec3};
 
-use super::bsdf::{Frame, Lobes};
 use super::integrator::{power_heuristic, Integrator};
 use super::lights::Lights;
 use super::{first_hits, shade_tiles, Progress, RenderSettings, RenderStats};
-use crate::accel::{offset_origin, Ray, RayEngine};
+use crate::accel::{offset_origin, RayEngine};
+use crate::bsdf::{Frame, Lobes};
 use crate::camera::Camera;
 use crate::image::{RangeImage, RangeMeta};
 use crate::radiosity::lookup::IrradianceCache;
+use crate::ray::Ray;
 use crate::rng::Pcg32;
 use crate::scene::Scene;
 

@@ -6,9 +6,10 @@
 use anyhow::{ensure, Result};
 use glam::{Affine3A, Vec2, Vec3};
 
-use super::bsdf::{Frame, Lobes};
 use super::lights::Lights;
-use crate::accel::{offset_origin, Hit, Ray, RayEngine};
+use crate::accel::{offset_origin, Hit, RayEngine};
+use crate::bsdf::{Frame, Lobes};
+use crate::ray::Ray;
 use crate::rng::Pcg32;
 use crate::scene::{Bsdf, Scene};
 

@@ -11,7 +11,6 @@ use std::sync::Arc;
 use anyhow::{anyhow, Result};
 use glam::{Affine3A, Vec2, Vec3};
 
-use crate::accel::MeshGeometry;
 use crate::camera::{Camera, Projection};
 use crate::image::Texture;
 
@@ -52,6 +51,14 @@ pub struct Object {
     /// Index into `Scene::materials`.
     pub material: usize,
     pub motion: Motion,
+}
+
+/// Object-space triangles as the ray engines take them: positions and
+/// indices only, without the texture coordinates shading needs.
+#[derive(Clone, Debug, Default)]
+pub struct MeshGeometry {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
 }
 
 /// Object-space triangles; `uvs`, when present, has one entry per position.

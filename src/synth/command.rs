@@ -2,13 +2,14 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, ensure, Context, Result};
+use anyhow::{Context, Result};
 
 use super::walk::{self, WalkSettings};
 use super::{
     check_bake, view_space_warning, Blend, Fill, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET,
 };
 use crate::bake::Bake;
+use crate::eval::walkcheck::ReferenceChecks;
 use crate::image;
 use crate::scene::Scene;
 
@@ -231,20 +232,17 @@ pub fn walk(args: &WalkArgs) -> Result<()> {
         fps: args.fps,
         options,
         exposure: args.synth.exposure,
-        check: match args.check_every {
-            None => None,
-            Some(0) => bail!("--check-every 0: give a frame interval of at least 1"),
-            Some(every) => {
-                ensure!(args.check_spp > 0, "--check-spp must be at least 1");
-                Some(walk::CheckSettings {
-                    every,
-                    spp: args.check_spp,
-                    seed: options.seed,
-                })
-            }
-        },
     };
-    let s = walk::walk(&mut synth, &settings, &args.out)?;
+    let mut checks = match args.check_every {
+        None => None,
+        Some(every) => Some(ReferenceChecks::new(every, args.check_spp, options.seed)?),
+    };
+    let s = walk::walk(
+        &mut synth,
+        &settings,
+        &args.out,
+        checks.as_mut().map(|c| c as &mut dyn walk::FrameChecker),
+    )?;
     let holes: usize = s.holes.iter().sum();
     println!(
         "{}: {} frames of path `{}` at {}x{}: {:.1} frames/s synthesis ({:.3} s), {:.3} s reading {} base image(s), {:.3} s in all; {} hole pixel(s); peak memory {}; {} bytes per base pixel",

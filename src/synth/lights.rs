@@ -17,8 +17,9 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::accel::{Hit, Ray, RayEngine};
+use crate::accel::{Hit, RayEngine};
 use crate::image::{RangeImage, NO_HIT};
+use crate::ray::Ray;
 use crate::render::surface::{SurfacePoint, SurfaceShading};
 use crate::scene::Scene;
 

@@ -10,13 +10,9 @@ use std::time::Instant;
 use anyhow::{bail, ensure, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use glam::Vec3;
-
 use super::{view_space_warning, FrameStats, Options, Synthesizer};
-use crate::eval::metrics;
-use crate::eval::reference::path_trace_image;
-use crate::eval::summary::write_sheet;
-use crate::image;
+use crate::camera::Camera;
+use crate::image::{self, RangeImage};
 
 /// What a walk writes and how.
 #[derive(Clone, Debug)]
@@ -28,18 +24,27 @@ pub struct WalkSettings {
     pub fps: Option<f32>,
     pub options: Options,
     pub exposure: f32,
-    /// Frames to path-trace as well, to measure the synthesis against.
-    pub check: Option<CheckSettings>,
 }
 
-/// Which frames a walk checks against path-traced references, and how
-/// converged those are.
-#[derive(Clone, Copy, Debug)]
-pub struct CheckSettings {
-    /// Every `every`-th frame from the first, and the last.
-    pub every: usize,
-    pub spp: u32,
-    pub seed: u64,
+/// What a walk measures of some of its frames besides writing them. The
+/// evaluation implements it with path-traced references
+/// (`eval::walkcheck`), so that synthesis needs nothing of evaluation.
+pub trait FrameChecker {
+    /// Whether frame `i` of `n` is measured.
+    fn wants(&self, i: usize, n: usize) -> bool;
+    /// Measures frame `i`, made for `camera` at time `t`; what it writes
+    /// goes in `dir`, the walk's unfinished output folder.
+    fn check(
+        &mut self,
+        synth: &mut Synthesizer,
+        i: usize,
+        t: f32,
+        camera: &Camera,
+        frame: &RangeImage,
+        dir: &Path,
+    ) -> Result<FrameCheck>;
+    /// After the last frame, before the walk's folder is complete.
+    fn finish(&mut self, dir: &Path, exposure: f32) -> Result<()>;
 }
 
 /// One frame checked against its path-traced reference.
@@ -89,8 +94,14 @@ pub fn frame_times(span: (f32, f32), fps: f32) -> Vec<f32> {
 }
 
 /// Synthesizes every frame of the path into `out` (written as
-/// `<out>.partial` and renamed when complete).
-pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Result<WalkSummary> {
+/// `<out>.partial` and renamed when complete), measuring the frames
+/// `checker` wants.
+pub fn walk(
+    synth: &mut Synthesizer,
+    settings: &WalkSettings,
+    out: &Path,
+    mut checker: Option<&mut dyn FrameChecker>,
+) -> Result<WalkSummary> {
     let scene = synth.scene;
     let path = scene.path(&settings.path)?.clone();
     let fps = settings.fps.unwrap_or(scene.animation.fps);
@@ -119,7 +130,6 @@ pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Res
     let mut stats: Vec<FrameStats> = Vec::with_capacity(times.len());
     let mut previews: Vec<Vec<u8>> = Vec::with_capacity(times.len());
     let mut checks = Vec::new();
-    let mut sheet: Vec<(Vec<Vec3>, Vec<Vec3>)> = Vec::new();
     for (i, &t) in times.iter().enumerate() {
         let desc = path.at(t);
         let camera = desc
@@ -138,25 +148,9 @@ pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Res
             settings.exposure,
         )?;
         previews.push(image::tonemap_srgb8(&frame.radiance, settings.exposure));
-        let last = i + 1 == times.len();
-        if let Some(c) = settings.check.filter(|c| i % c.every.max(1) == 0 || last) {
-            bar.set_message(format!("path-tracing frame {i} at {} spp", c.spp));
-            let scene = synth.scene;
-            let engine = synth.engine_at(t)?;
-            let reference = path_trace_image(scene, engine, &camera, t, c.spp, c.seed)
-                .with_context(|| format!("the reference of frame {i} (t = {t})"))?;
-            image::write_exr(staging.join(format!("reference-{i:04}.exr")), &reference.0)?;
-            let e = metrics::compare(&frame.radiance, &reference.0.radiance, None)
-                .with_context(|| format!("frame {i} against its reference"))?;
-            checks.push(FrameCheck {
-                frame: i,
-                time: t,
-                lrms: e.lrms,
-                bias: e.bias,
-                reference_spp: c.spp,
-                reference_seconds: reference.1,
-            });
-            sheet.push((frame.radiance.clone(), reference.0.radiance));
+        if let Some(c) = checker.as_mut().filter(|c| c.wants(i, times.len())) {
+            bar.set_message(format!("checking frame {i}"));
+            checks.push(c.check(synth, i, t, &camera, &frame, &staging)?);
         }
         bar.set_message(format!(
             "{:.1} ms/frame",
@@ -173,17 +167,8 @@ pub fn walk(synth: &mut Synthesizer, settings: &WalkSettings, out: &Path) -> Res
         fps,
         &previews,
     )?;
-    if !sheet.is_empty() {
-        let rows: Vec<Vec<&[Vec3]>> = vec![
-            sheet.iter().map(|(s, _)| s.as_slice()).collect(),
-            sheet.iter().map(|(_, r)| r.as_slice()).collect(),
-        ];
-        write_sheet(
-            staging.join("contact.png"),
-            (settings.width, settings.height),
-            &rows,
-            settings.exposure,
-        )?;
+    if let Some(c) = checker {
+        c.finish(&staging, settings.exposure)?;
     }
     let synthesis_seconds: f64 = stats.iter().map(|s| s.seconds - s.load_seconds).sum();
     let load_seconds: f64 = stats.iter().map(|s| s.load_seconds).sum();

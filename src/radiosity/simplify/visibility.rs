@@ -9,7 +9,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::params::{TRIALS, VIEWS_PER_TRIAL};
-use crate::accel::{InstancedEngine, Ray, RayEngine};
+use crate::accel::{InstancedEngine, RayEngine};
+use crate::ray::Ray;
 use crate::rng::{SplitMix64, GOLDEN};
 use crate::scene::{Scene, ViewSpace};
 

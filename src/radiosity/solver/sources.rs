@@ -8,7 +8,8 @@ use rayon::prelude::*;
 
 use super::hierarchy::Hierarchy;
 use super::links::{hash3, unit};
-use crate::accel::{offset_origin, Ray, RayEngine};
+use crate::accel::{offset_origin, RayEngine};
+use crate::ray::Ray;
 use crate::scene::Light;
 
 /// Direct irradiance `[front, back]` on each surface node in `nodes`, from

@@ -11,9 +11,10 @@
 use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
-use crate::accel::{Ray, RayEngine};
+use crate::accel::RayEngine;
 use crate::radiosity::simplify::COARSEN_ERROR;
 use crate::radiosity::{object_extent, Simplified};
+use crate::ray::Ray;
 use crate::scene::Scene;
 
 /// World-space displacement of each patch of `s` posed by `poses`: from its

@@ -5,6 +5,9 @@
 //! The glossy lobes carry no Fresnel factor, so that the GGX lobe equals
 //! Mitsuba's `roughconductor` with `material="none"` (separable Smith
 //! masking-shadowing, visible-normal sampling) term for term.
+//!
+//! The radiosity transport takes its albedos from here and every renderer
+//! its shading, so it lives below both.
 
 use std::f32::consts::{FRAC_1_PI, PI};
 

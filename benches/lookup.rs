@@ -12,10 +12,10 @@ use std::path::PathBuf;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::Vec3;
-use rangewalk::accel::{self, offset_origin, Backend};
+use rangewalk::accel::{self, Backend};
 use rangewalk::radiosity::lookup::IrradianceCache;
 use rangewalk::radiosity::{simplify, solve, Quality};
-use rangewalk::ray::Ray;
+use rangewalk::ray::{offset_origin, Ray};
 use rangewalk::rng::SplitMix64;
 use rangewalk::scene::Scene;
 

@@ -11,9 +11,9 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::{Affine3A, Quat, Vec3};
-use rangewalk::accel::{self, offset_origin, Backend, InstancedEngine};
+use rangewalk::accel::{self, Backend, InstancedEngine};
 use rangewalk::camera::{Camera, Projection};
-use rangewalk::ray::Ray;
+use rangewalk::ray::{offset_origin, Ray};
 use rangewalk::rng::SplitMix64;
 use rangewalk::scene::MeshGeometry;
 use rangewalk::scene::Scene;

@@ -1,5 +1,7 @@
 //! The `rangewalk` command line.
 
+mod cli;
+
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -42,7 +44,7 @@ enum Command {
         /// Output range image (OpenEXR: radiance, distance, ids, normals).
         #[arg(long)]
         out: PathBuf,
-        #[arg(long, value_enum, default_value_t = Backend::default_available())]
+        #[arg(long, value_parser = cli::choice::<Backend>(), default_value_t = Backend::default_available())]
         backend: Backend,
         #[arg(long, default_value_t = 0)]
         seed: u64,
@@ -89,7 +91,7 @@ enum Command {
         /// Bake directory to write (replaced if it holds an earlier bake).
         #[arg(long)]
         out: PathBuf,
-        #[arg(long, value_enum, default_value_t = Backend::default_available())]
+        #[arg(long, value_parser = cli::choice::<Backend>(), default_value_t = Backend::default_available())]
         backend: Backend,
     },
     /// Choose base views and their time lists from id-image fitness
@@ -104,13 +106,13 @@ enum Command {
     Slurm(SlurmArgs),
     /// Synthesize one frame of a named camera at a time from a bake's base
     /// images (view reprojection and time interpolation).
-    Synth(rangewalk::synth::command::SynthArgs),
+    Synth(cli::synth::SynthArgs),
     /// Synthesize every frame of a walk path from a bake: range images,
     /// previews, an animated preview and a summary.
-    Walk(rangewalk::synth::command::WalkArgs),
+    Walk(cli::synth::WalkArgs),
     /// Walk through a bake in a window, in real time: keys and mouse move
     /// and turn, time plays; or play a path or an input script.
-    View(rangewalk::viewer::command::ViewArgs),
+    View(cli::view::ViewArgs),
     /// Error of range images against a reference range image: LRMS and
     /// bias of luminance (the paper's measure).
     Compare {
@@ -121,7 +123,7 @@ enum Command {
     /// Measure a stage against path-traced references and write a report.
     Experiment {
         #[command(subcommand)]
-        experiment: rangewalk::eval::Experiment,
+        experiment: cli::experiment::Experiment,
     },
 }
 
@@ -362,7 +364,7 @@ fn run(cli: Cli) -> Result<()> {
             report_radiosity(&s, &simplified, &series);
             println!("bake written to {}", out.display());
         }
-        Command::Experiment { experiment } => rangewalk::eval::run(experiment)?,
+        Command::Experiment { experiment } => cli::experiment::run(experiment)?,
         Command::Plan(args) => plan(args)?,
         Command::Bake(args) => bake_command(args)?,
         Command::Slurm(args) => slurm_command(args)?,
@@ -381,9 +383,9 @@ fn run(cli: Cli) -> Result<()> {
                 );
             }
         }
-        Command::Synth(args) => rangewalk::synth::command::synth(&args)?,
-        Command::Walk(args) => rangewalk::synth::command::walk(&args)?,
-        Command::View(args) => rangewalk::viewer::command::view(&args)?,
+        Command::Synth(args) => cli::synth::synth(&args)?,
+        Command::Walk(args) => cli::synth::walk(&args)?,
+        Command::View(args) => cli::view::view(&args)?,
     }
     Ok(())
 }
@@ -597,7 +599,7 @@ struct PlanArgs {
     /// One master time list for every view (the paper's choice).
     #[arg(long)]
     master_list: bool,
-    #[arg(long, value_enum, default_value_t = Backend::default_available())]
+    #[arg(long, value_parser = cli::choice::<Backend>(), default_value_t = Backend::default_available())]
     backend: Backend,
     /// Replace the scene's view space by the segment `x,y,z:x,y,z`.
     #[arg(long, value_parser = rangewalk::scene::parse_segment, allow_hyphen_values = true)]
@@ -761,15 +763,15 @@ struct BakeOptions {
     /// Samples per base-image pixel.
     #[arg(long, default_value_t = bake::DEFAULT_SPP)]
     spp: u32,
-    #[arg(long, value_enum, default_value_t = BaseProjection::Sphere)]
+    #[arg(long, value_parser = cli::choice::<BaseProjection>(), default_value_t = BaseProjection::Sphere)]
     projection: BaseProjection,
     /// Diffuse indirect light: radiosity records (the paper's multipass
     /// renderer) or traced.
-    #[arg(long, value_enum, default_value_t = IndirectSource::Radiosity)]
+    #[arg(long, value_parser = cli::choice::<IndirectSource>(), default_value_t = IndirectSource::Radiosity)]
     indirect: IndirectSource,
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    #[arg(long, value_enum, default_value_t = Backend::default_available())]
+    #[arg(long, value_parser = cli::choice::<Backend>(), default_value_t = Backend::default_available())]
     backend: Backend,
     /// Longest path, counted as Mitsuba's `max_depth`; unlimited by default.
     #[arg(long)]
@@ -803,9 +805,6 @@ impl BakeOptions {
     /// The same options as `rangewalk bake` arguments, every one spelled
     /// out so that the jobs do not depend on defaults.
     fn words(&self) -> Vec<String> {
-        let name = |v: &dyn Fn() -> Option<clap::builder::PossibleValue>| {
-            v().expect("every value has a name").get_name().to_string()
-        };
         let mut w: Vec<String> = Vec::new();
         let mut push = |k: &str, v: String| {
             w.push(k.into());
@@ -819,13 +818,10 @@ impl BakeOptions {
             format!("{}x{}", self.frame_size.0, self.frame_size.1),
         );
         push("--spp", self.spp.to_string());
-        push(
-            "--projection",
-            name(&|| self.projection.to_possible_value()),
-        );
-        push("--indirect", name(&|| self.indirect.to_possible_value()));
+        push("--projection", self.projection.to_string());
+        push("--indirect", self.indirect.to_string());
         push("--seed", self.seed.to_string());
-        push("--backend", name(&|| self.backend.to_possible_value()));
+        push("--backend", self.backend.to_string());
         if let Some(d) = self.max_depth {
             push("--max-depth", d.to_string());
         }

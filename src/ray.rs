@@ -1,5 +1,6 @@
-//! The ray: the one geometric type that cameras, the scene's samplers, both
-//! ray engines and every renderer share, so it lives below all of them.
+//! The ray, and where a ray leaving a surface starts: what cameras, the
+//! scene's lights, both ray engines and every renderer share, so it lives
+//! below all of them.
 
 use glam::Vec3;
 
@@ -35,4 +36,25 @@ impl Ray {
     pub fn at(&self, t: f32) -> Vec3 {
         self.origin + self.dir * t
     }
+}
+
+/// Moves a ray origin off the surface it lies on so that the new ray does not
+/// hit that surface again, whatever the scene's scale.
+///
+/// The offset is relative to the magnitude of the point's coordinates (the
+/// floating-point error of a computed hit point grows with them), pushed along
+/// the geometric normal to the side `dir` leaves towards.
+pub fn offset_origin(p: Vec3, normal: Vec3, dir: Vec3) -> Vec3 {
+    // A few ulps of the largest coordinate, plus a tiny absolute floor for
+    // points near the origin.
+    const REL: f32 = 1.0 / 65536.0;
+    const ABS: f32 = 1e-30;
+    let mag = p.abs().max_element();
+    let eps = mag * REL + ABS;
+    let n = if normal.dot(dir) < 0.0 {
+        -normal
+    } else {
+        normal
+    };
+    p + n * eps
 }

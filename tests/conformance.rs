@@ -10,8 +10,8 @@
 
 use glam::{Affine3A, DVec3, Quat, Vec3};
 use proptest::prelude::*;
-use rangewalk::accel::{self, offset_origin, Backend, Hit, InstancedEngine};
-use rangewalk::ray::Ray;
+use rangewalk::accel::{self, Backend, Hit, InstancedEngine};
+use rangewalk::ray::{offset_origin, Ray};
 use rangewalk::rng::SplitMix64;
 use rangewalk::scene::MeshGeometry;
 

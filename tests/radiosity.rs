@@ -6,12 +6,12 @@ use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
-use rangewalk::accel::{self, offset_origin, Backend, InstancedEngine, RayEngine};
+use rangewalk::accel::{self, Backend, InstancedEngine, RayEngine};
 use rangewalk::radiosity::formfactor::triangle_to_triangle;
 use rangewalk::radiosity::{
     diffuse_albedo, solve, IndirectSolution, Patch, Quality, RecordPoint, Simplified,
 };
-use rangewalk::ray::Ray;
+use rangewalk::ray::{offset_origin, Ray};
 use rangewalk::scene::{Light, Scene};
 use rayon::prelude::*;
 

@@ -916,7 +916,7 @@ mod tests {
                 let target = p(213.0, h - 1.0, 227.0)
                     + p(130.0, 0.0, 0.0) * rng.f32()
                     + p(0.0, 0.0, 105.0) * rng.f32();
-                let origin = super::super::offset_origin(at, n, target - at);
+                let origin = crate::ray::offset_origin(at, n, target - at);
                 Ray::segment(origin, target - origin, 0.999)
             })
             .collect();

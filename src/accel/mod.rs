@@ -81,9 +81,21 @@ pub trait InstancedEngine: RayEngine {
 
 /// Which ray engine to build.
 #[derive(
-    Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    serde::Deserialize,
+    strum::Display,
+    strum::EnumString,
+    strum::IntoStaticStr,
+    strum::VariantArray,
+    strum::EnumMessage,
 )]
 #[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
 pub enum Backend {
     /// Intel Embree 3 (needs the `embree` feature).
     Embree,
@@ -111,15 +123,6 @@ impl Backend {
     }
 }
 
-impl std::fmt::Display for Backend {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Backend::Embree => "embree",
-            Backend::Bvh => "bvh",
-        })
-    }
-}
-
 /// Builds a ray engine over `meshes`, instance `i` placed by `transforms[i]`.
 pub fn build(
     backend: Backend,
@@ -141,25 +144,4 @@ pub fn build(
             "this build of rangewalk has no Embree backend (built without the `embree` feature); use --backend bvh"
         ),
     }
-}
-
-/// Moves a ray origin off the surface it lies on so that the new ray does not
-/// hit that surface again, whatever the scene's scale.
-///
-/// The offset is relative to the magnitude of the point's coordinates (the
-/// floating-point error of a computed hit point grows with them), pushed along
-/// the geometric normal to the side `dir` leaves towards.
-pub fn offset_origin(p: Vec3, normal: Vec3, dir: Vec3) -> Vec3 {
-    // A few ulps of the largest coordinate, plus a tiny absolute floor for
-    // points near the origin.
-    const REL: f32 = 1.0 / 65536.0;
-    const ABS: f32 = 1e-30;
-    let mag = p.abs().max_element();
-    let eps = mag * REL + ABS;
-    let n = if normal.dot(dir) < 0.0 {
-        -normal
-    } else {
-        normal
-    };
-    p + n * eps
 }

@@ -50,8 +50,22 @@ pub const DIFFUSE_DIRECT: &str = "diffuse_direct";
 /// The folder of a bake directory that holds its Slurm job scripts and logs.
 pub const SLURM_DIR: &str = "slurm";
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::Display,
+    strum::EnumString,
+    strum::IntoStaticStr,
+    strum::VariantArray,
+    strum::EnumMessage,
+)]
 #[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
 pub enum BaseProjection {
     /// Every direction, equal-area octahedral: the viewer may turn freely.
     Sphere,
@@ -59,8 +73,22 @@ pub enum BaseProjection {
     Fisheye,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::Display,
+    strum::EnumString,
+    strum::IntoStaticStr,
+    strum::VariantArray,
+    strum::EnumMessage,
+)]
 #[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
 pub enum IndirectSource {
     /// Looked up from radiosity records interpolated in time (§4.3–4.4).
     Radiosity,

@@ -256,7 +256,7 @@ pub unsafe extern "C" fn rw_bake_open(dir: *const c_char, out: *mut *mut rw_bake
         let dir = unsafe { args::path(dir, "dir") }?;
         args::out(out, "out")?;
         let (scene, bake) =
-            synth::command::open(&dir, None).map_err(|e| Failure::of(rw_status::RW_BAKE, e))?;
+            synth::open(&dir, None).map_err(|e| Failure::of(rw_status::RW_BAKE, e))?;
         // SAFETY: checked not NULL; writable by the caller's promise.
         unsafe { out.write(handle(scene, bake)) };
         Ok(())

@@ -34,37 +34,28 @@ use crate::scene::Scene;
 const TEST_SEED: u64 = 1;
 
 /// What `rangewalk experiment indirect` takes.
-#[derive(clap::Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct IndirectArgs {
     pub scene: PathBuf,
     /// Qualities to measure, comma-separated, each in [0, 1].
-    #[arg(long, value_delimiter = ',', default_value = "0.3,0.6,0.9")]
     pub quality: Vec<f32>,
     /// Output folder (written as `<out>.partial`, renamed when complete).
-    #[arg(long)]
     pub out: PathBuf,
     /// Frames spread evenly over the animation, both ends included
     /// [default: duration x fps, or 1 for a static scene].
-    #[arg(long)]
     pub frames: Option<u32>,
     /// Image size, `<W>x<H>`.
-    #[arg(long, default_value = "256x256", value_parser = crate::image::parse_size)]
     pub size: (u32, u32),
     /// Named camera of the scene.
-    #[arg(long, default_value = "main")]
     pub camera: String,
     /// Samples per pixel of the path-traced references.
-    #[arg(long, default_value_t = 4096)]
     pub reference_spp: u32,
     /// Samples per pixel of the multipass renderer (direct light and
     /// specular rays; indirect light is looked up).
-    #[arg(long, default_value_t = 16)]
     pub spp: u32,
-    #[arg(long, value_enum, default_value_t = Backend::default_available())]
     pub backend: Backend,
     /// Leave out the FLIP column (when the Python environment of `make deps`
     /// is not installed).
-    #[arg(long)]
     pub no_flip: bool,
 }
 

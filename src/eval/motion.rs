@@ -36,15 +36,12 @@ const PAPER_FULLY_RENDERED_S: f64 = 15204.0;
 pub const PAPER_FRAME: usize = 10;
 
 /// What `rangewalk experiment motion` takes.
-#[derive(clap::Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct MotionArgs {
-    #[command(flatten)]
     pub common: CommonArgs,
     /// The fixed view: a named camera of the scene. Its position is the one
     /// base view.
-    #[arg(long, default_value = "main")]
     pub camera: String,
-    #[command(flatten)]
     pub sequence: SequenceArgs,
 }
 

@@ -40,56 +40,40 @@ const BAKE_SEED: u64 = 0;
 const TIMING_FILE: &str = "experiment-timing.json";
 
 /// Options every synthesis experiment takes.
-#[derive(clap::Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct CommonArgs {
     pub scene: PathBuf,
     /// Qualities to measure, comma-separated, each in [0, 1]; the same
     /// quality drives every stage (plan, radiosity).
-    #[arg(long, value_delimiter = ',', default_value = "0.3,0.6,0.9")]
     pub quality: Vec<f32>,
     /// Output folder (written as `<out>.partial`, renamed when complete);
     /// the bakes and references in it are reused by a rerun.
-    #[arg(long)]
     pub out: PathBuf,
     /// Frame size, `<W>x<H>`.
-    #[arg(long, default_value = "256x256", value_parser = crate::image::parse_size)]
     pub size: (u32, u32),
     /// Samples per pixel of the path-traced references.
-    #[arg(long, default_value_t = 4096)]
     pub reference_spp: u32,
     /// Samples per pixel of the base images.
-    #[arg(long, default_value_t = 16)]
     pub base_spp: u32,
     /// Side of the square full-sphere base images [default: no base pixel
     /// coarser than a frame pixel at the scene's narrowest field of view].
-    #[arg(long)]
     pub base_size: Option<u32>,
-    #[arg(long, value_enum, default_value_t = Backend::default_available())]
     pub backend: Backend,
     /// Leave out the FLIP column (when the Python environment of `make deps`
     /// is not installed).
-    #[arg(long)]
     pub no_flip: bool,
 }
 
 /// Options of the experiments over a sequence of frames.
-#[derive(clap::Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct SequenceArgs {
     /// Frames spread evenly over the animation (`motion`) or the walk path
     /// (`walkthrough`), both ends included [default: every frame at the
     /// scene's rate, both ends included: 31 for one second at 30 frames/s].
-    #[arg(long)]
     pub frames: Option<u32>,
     /// Time interpolations to compare.
-    #[arg(
-        long,
-        value_enum,
-        value_delimiter = ',',
-        default_value = "linear,motion,reshade"
-    )]
     pub time_interp: Vec<TimeInterp>,
     /// Hole filling.
-    #[arg(long, value_enum, default_value_t = Fill::Both)]
     pub fill: Fill,
 }
 

@@ -41,23 +41,19 @@ const PAPER: [(f32, f64); 3] = [(0.3, 0.638), (0.6, 0.625), (0.9, 0.117)];
 const PAPER_RESAMPLED: f64 = 0.120;
 
 /// What `rangewalk experiment views` takes.
-#[derive(clap::Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct ViewsArgs {
-    #[command(flatten)]
     pub common: CommonArgs,
     /// Named camera whose view direction and field of view the target view
     /// takes.
-    #[arg(long, default_value = "main")]
     pub camera: String,
     /// The 1D view subspace, `x,y,z:x,y,z` [default: the scene's segment,
     /// or the line through the middle of its rectangle or box along the
     /// longest side].
-    #[arg(long, value_parser = crate::scene::parse_segment, allow_hyphen_values = true)]
     pub view_segment: Option<ViewSpace>,
     /// Put the target view at this fraction of the segment for every
     /// quality [default: for each quality, midway between the two adjacent
     /// bases whose middle is nearest the segment's].
-    #[arg(long)]
     pub target: Option<f32>,
 }
 

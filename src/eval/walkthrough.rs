@@ -41,7 +41,19 @@ const PAPER_FULLY_RENDERED_MIN: f64 = 4113.54;
 const PAPER_FRAMES: usize = 30;
 
 /// Which planned views are baked.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    strum::Display,
+    strum::EnumString,
+    strum::IntoStaticStr,
+    strum::VariantArray,
+    strum::EnumMessage,
+)]
+#[strum(serialize_all = "lowercase")]
 pub enum BakeViews {
     /// Every view of the plan: the framework's bake, for any path.
     All,
@@ -52,24 +64,18 @@ pub enum BakeViews {
 }
 
 /// What `rangewalk experiment walkthrough` takes.
-#[derive(clap::Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct WalkthroughArgs {
-    #[command(flatten)]
     pub common: CommonArgs,
     /// Walk path of the scene.
-    #[arg(long, default_value = "walk")]
     pub path: String,
-    #[command(flatten)]
     pub sequence: SequenceArgs,
     /// Base views each frame is made from, nearest first.
-    #[arg(long, default_value_t = 4)]
     pub bases: usize,
     /// Which planned views to bake.
-    #[arg(long, value_enum, default_value_t = BakeViews::All)]
     pub bake_views: BakeViews,
     /// Length of the walk-through (frames) the bake is amortized over in
     /// the summary's speed-up.
-    #[arg(long, default_value_t = 300)]
     pub amortize_frames: u64,
 }
 

@@ -6,14 +6,14 @@
 //! segments from the camera to the emitter. `max_depth = 1` shows emitters
 //! seen directly, `2` adds direct lighting, and so on; `None` is unlimited.
 
-use glam::{Affine3A, Vec2, Vec3};
+use glam::{Affine3A, Vec3};
 
+use super::hit::SurfaceHit;
 use super::lights::Lights;
-use crate::accel::{offset_origin, RayEngine};
-use crate::bsdf::{Frame, Lobes};
-use crate::ray::Ray;
+use crate::accel::RayEngine;
+use crate::ray::{offset_origin, Ray};
 use crate::rng::Pcg32;
-use crate::scene::{Object, Scene};
+use crate::scene::Scene;
 
 /// Segments after which Russian roulette may end a path.
 const ROULETTE_AFTER: u32 = 3;
@@ -45,18 +45,6 @@ pub(super) fn power_heuristic(a: f32, b: f32) -> f32 {
 }
 
 impl Integrator<'_> {
-    /// The hit point from the triangle's vertices and the barycentrics, not
-    /// from `origin + t dir`: its rounding error then scales with the
-    /// triangle's coordinates, which `offset_origin` accounts for, instead of
-    /// with the ray origin's (a far camera looking at a point near the world
-    /// origin would otherwise start shadow rays behind the surface).
-    fn hit_point(&self, object: &Object, id: u32, primitive: u32, u: f32, v: f32) -> Vec3 {
-        let [a, b, c] = object.mesh.triangles[primitive as usize];
-        let pos = &object.mesh.positions;
-        let local = pos[a as usize] * (1.0 - u - v) + pos[b as usize] * u + pos[c as usize] * v;
-        self.poses[id as usize].transform_point3(local)
-    }
-
     /// Radiance arriving along `ray` (one sample); `rays` counts every ray
     /// traced.
     pub fn radiance(&self, ray: Ray, rng: &mut Pcg32, rays: &mut u64) -> Vec3 {
@@ -108,38 +96,24 @@ impl Integrator<'_> {
                 }
                 break;
             };
-            let object = &self.scene.objects[hit.object as usize];
-            let p = self.hit_point(object, hit.object, hit.primitive, hit.u, hit.v);
-            let ng = hit.normal;
-            let wo = -ray.dir.normalize();
-            let cos_o = ng.dot(wo);
-            if !(p.is_finite() && ng.is_finite() && cos_o.is_finite()) || cos_o == 0.0 {
+            let Some(surface) = SurfaceHit::new(self.scene, &self.poses, &ray, &hit) else {
                 break;
-            }
-            let material = &self.scene.materials[object.material];
-            if let Some(em) = material.emission.filter(|_| emission_counts) {
-                if em.two_sided || cos_o > 0.0 {
-                    let w = prev_pdf.map_or(1.0, |pb| {
-                        let pl = self
-                            .lights
-                            .triangle_pdf(hit.object, hit.primitive, prev_p, p);
-                        power_heuristic(pb, pl)
-                    });
-                    l += beta * em.radiance * w;
-                }
+            };
+            let (p, ng) = (surface.p, surface.ng);
+            if let Some(le) = surface.emitted().filter(|_| emission_counts) {
+                let w = prev_pdf.map_or(1.0, |pb| {
+                    let pl = self
+                        .lights
+                        .triangle_pdf(hit.object, hit.primitive, prev_p, p);
+                    power_heuristic(pb, pl)
+                });
+                l += beta * le * w;
             }
             if segments >= max_depth {
                 break;
             }
-            let n = if cos_o > 0.0 { ng } else { -ng };
-            let frame = Frame::new(n);
-            let wo_l = frame.to_local(wo);
-            let uv = object.mesh.uvs.as_ref().map(|uvs| {
-                let [a, b, c] = object.mesh.triangles[hit.primitive as usize];
-                let w0 = 1.0 - hit.u - hit.v;
-                uvs[a as usize] * w0 + uvs[b as usize] * hit.u + uvs[c as usize] * hit.v
-            });
-            let lobes = Lobes::at(&material.bsdf, uv.filter(|uv: &Vec2| uv.is_finite()));
+            let (frame, lobes) = surface.lobes();
+            let wo_l = frame.to_local(surface.wo);
 
             if !lobes.is_delta() && !self.lights.is_empty() {
                 let (u, u1, u2) = (rng.next_f64(), rng.next_f32(), rng.next_f32());

@@ -7,9 +7,8 @@ use std::f32::consts::PI;
 
 use glam::Vec3;
 
-use crate::accel::offset_origin;
-use crate::ray::Ray;
-use crate::scene::{Light, Scene};
+use crate::ray::{offset_origin, Ray};
+use crate::scene::{Light, PointArrival, Scene};
 
 enum Entry {
     Triangle {
@@ -42,13 +41,11 @@ pub struct Sun {
 
 impl Sun {
     pub fn new(direction: Vec3, radiance: Vec3, angular_diameter_deg: f32) -> Self {
-        let s = (0.25 * angular_diameter_deg).to_radians().sin();
-        let one_minus_cos = 2.0 * s * s;
         Self {
             direction: direction.normalize(),
             radiance,
-            one_minus_cos,
-            solid_angle: 2.0 * PI * one_minus_cos,
+            one_minus_cos: Light::sun_one_minus_cos(angular_diameter_deg),
+            solid_angle: Light::sun_solid_angle(angular_diameter_deg),
         }
     }
 
@@ -234,20 +231,13 @@ impl Lights {
             Entry::Point {
                 position,
                 intensity,
-            } => {
-                let d = position - p;
-                let dist2 = d.length_squared();
-                let wi = d / dist2.sqrt();
-                let origin = offset_origin(p, ng, wi);
-                Some(LightSample {
-                    wi,
-                    shadow: Ray::segment(origin, position - origin, 1.0),
-                    radiance: intensity / dist2,
-                    pdf: sel,
-                    delta: true,
-                })
-                .filter(|l| l.radiance.is_finite() && l.wi.is_finite())
-            }
+            } => PointArrival::new(position, intensity, p, ng).map(|a| LightSample {
+                wi: a.wi,
+                shadow: a.shadow,
+                radiance: a.irradiance,
+                pdf: sel,
+                delta: true,
+            }),
             Entry::Sun(sun) => {
                 let wi = sun.sample(u1, u2);
                 Some(LightSample {

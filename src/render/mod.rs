@@ -20,6 +20,7 @@ use crate::image::{RangeImage, RangeMeta};
 use crate::ray::Ray;
 use crate::scene::Scene;
 
+mod hit;
 mod integrator;
 mod lights;
 pub mod multipass;

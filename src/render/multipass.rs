@@ -27,17 +27,18 @@ use std::f32::consts::FRAC_1_PI;
 use std::time::Instant;
 
 use anyhow::{ensure, Result};
-use glam::{Affine3A, Vec2, Vec3};
+use glam::{Affine3A, Vec3};
 
+use super::hit::SurfaceHit;
 use super::integrator::{power_heuristic, Integrator};
 use super::lights::Lights;
 use super::{first_hits, shade_tiles, Progress, RenderSettings, RenderStats};
-use crate::accel::{offset_origin, RayEngine};
+use crate::accel::RayEngine;
 use crate::bsdf::{Frame, Lobes};
 use crate::camera::Camera;
 use crate::image::{RangeImage, RangeMeta};
 use crate::radiosity::lookup::IrradianceCache;
-use crate::ray::Ray;
+use crate::ray::{offset_origin, Ray};
 use crate::rng::Pcg32;
 use crate::scene::Scene;
 
@@ -228,42 +229,25 @@ impl Multipass<'_> {
                 }
                 break;
             };
-            let object = &self.scene.objects[hit.object as usize];
-            let [ia, ib, ic] = object.mesh.triangles[hit.primitive as usize];
-            let pos = &object.mesh.positions;
-            let (a, b, c) = (pos[ia as usize], pos[ib as usize], pos[ic as usize]);
-            let local = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
-            let p = self.poses[hit.object as usize].transform_point3(local);
-            let ng = hit.normal;
-            let wo = -ray.dir.normalize();
-            let cos_o = ng.dot(wo);
-            if !(p.is_finite() && ng.is_finite() && cos_o.is_finite()) || cos_o == 0.0 {
+            let Some(surface) = SurfaceHit::new(self.scene, &self.poses, &ray, &hit) else {
                 break;
-            }
-            let material = &self.scene.materials[object.material];
-            if let Some(em) = material.emission {
-                if em.two_sided || cos_o > 0.0 {
-                    let w = match came {
-                        Came::Only => 1.0,
-                        Came::Glossy { pdf, from } => {
-                            let pl = self.lights.triangle_pdf(hit.object, hit.primitive, from, p);
-                            power_heuristic(pdf, pl)
-                        }
-                    };
-                    l += beta * em.radiance * w;
-                }
+            };
+            let (p, ng) = (surface.p, surface.ng);
+            if let Some(le) = surface.emitted() {
+                let w = match came {
+                    Came::Only => 1.0,
+                    Came::Glossy { pdf, from } => {
+                        let pl = self.lights.triangle_pdf(hit.object, hit.primitive, from, p);
+                        power_heuristic(pdf, pl)
+                    }
+                };
+                l += beta * le * w;
             }
             if segments >= self.max_depth {
                 break;
             }
-            let n = if cos_o > 0.0 { ng } else { -ng };
-            let frame = Frame::new(n);
-            let wo_l = frame.to_local(wo);
-            let uv = object.mesh.uvs.as_ref().map(|uvs| {
-                let w0 = 1.0 - hit.u - hit.v;
-                uvs[ia as usize] * w0 + uvs[ib as usize] * hit.u + uvs[ic as usize] * hit.v
-            });
-            let lobes = Lobes::at(&material.bsdf, uv.filter(|uv: &Vec2| uv.is_finite()));
+            let (frame, lobes) = surface.lobes();
+            let wo_l = frame.to_local(surface.wo);
             let (diffuse, specular) = split(lobes);
 
             let lit = diffuse.is_some() || specular.is_some_and(|s| !s.is_delta());
@@ -279,11 +263,12 @@ impl Multipass<'_> {
                 if albedo != Vec3::ZERO {
                     let li = match &self.indirect {
                         Source::Records(cache) if segments + 2 <= self.max_depth => {
-                            // The object-space normal by winding, turned like `n`.
-                            let nl = (b - a).cross(c - a).normalize_or_zero();
-                            let front = cos_o > 0.0;
-                            let nl = if front { nl } else { -nl };
-                            let e = cache.irradiance(hit.object, front, local, nl);
+                            let e = cache.irradiance(
+                                hit.object,
+                                surface.front(),
+                                surface.local,
+                                surface.local_normal(),
+                            );
                             beta * albedo * FRAC_1_PI * e
                         }
                         Source::Traced(integrator) if segments + 2 <= self.traced_depth => {

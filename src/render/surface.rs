@@ -7,9 +7,9 @@ use anyhow::{ensure, Result};
 use glam::{Affine3A, Vec2, Vec3};
 
 use super::lights::Lights;
-use crate::accel::{offset_origin, Hit, RayEngine};
+use crate::accel::{Hit, RayEngine};
 use crate::bsdf::{Frame, Lobes};
-use crate::ray::Ray;
+use crate::ray::{offset_origin, Ray};
 use crate::rng::Pcg32;
 use crate::scene::{Bsdf, Scene};
 

@@ -13,6 +13,7 @@ use glam::{Affine3A, Vec2, Vec3};
 
 use crate::camera::{Camera, Projection};
 use crate::image::Texture;
+use crate::ray::{offset_origin, Ray};
 
 pub mod hash;
 mod load;
@@ -144,11 +145,51 @@ pub enum Light {
 }
 
 impl Light {
+    /// `1 - cos` of the sun disk's angular radius, through
+    /// `1 - cos θ = 2 sin²(θ/2)`: full precision for the sun's tiny cone,
+    /// where `cos θ` rounds to 1.
+    pub fn sun_one_minus_cos(angular_diameter_deg: f32) -> f32 {
+        let s = (0.25 * angular_diameter_deg).to_radians().sin();
+        2.0 * s * s
+    }
+
     /// Solid angle of the sun's disk, for converting its radiance to
     /// irradiance.
     pub fn sun_solid_angle(angular_diameter_deg: f32) -> f32 {
-        let half = (angular_diameter_deg * 0.5).to_radians();
-        2.0 * std::f32::consts::PI * (1.0 - half.cos())
+        2.0 * std::f32::consts::PI * Self::sun_one_minus_cos(angular_diameter_deg)
+    }
+}
+
+/// What a point light sends to a surface point, the same for the radiosity
+/// solver's direct light and the renderers' light samples.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointArrival {
+    /// Unit direction from the point towards the light.
+    pub wi: Vec3,
+    /// Intensity over distance squared: the irradiance at normal incidence.
+    pub irradiance: Vec3,
+    /// From just off the surface (whatever the scene's scale) to the light.
+    pub shadow: Ray,
+}
+
+impl PointArrival {
+    /// Light of a point light at `position` of `intensity` (per steradian)
+    /// at `p`, a point of a surface with geometric normal `ng`; `None` at
+    /// the light itself or where a value is not finite.
+    pub fn new(position: Vec3, intensity: Vec3, p: Vec3, ng: Vec3) -> Option<Self> {
+        let d = position - p;
+        let dist2 = d.length_squared();
+        if !(dist2 > 0.0) {
+            return None;
+        }
+        let wi = d / dist2.sqrt();
+        let origin = offset_origin(p, ng, wi);
+        Some(Self {
+            wi,
+            irradiance: intensity / dist2,
+            shadow: Ray::segment(origin, position - origin, 1.0),
+        })
+        .filter(|a| a.wi.is_finite() && a.irradiance.is_finite())
     }
 }
 

@@ -7,6 +7,7 @@
 //! sample moved by its object's rigid motion (motion-compensated), or that
 //! and direct light evaluated again at the frame's time (re-shaded).
 
+use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -21,7 +22,6 @@ use crate::image::{RangeImage, RangeMeta, NO_HIT};
 use crate::scene::{Scene, ViewSpace};
 
 pub mod base;
-pub mod command;
 mod fill;
 mod lights;
 mod reshade;
@@ -32,8 +32,21 @@ pub use base::{Base, BaseCache, BYTES_PER_PIXEL};
 pub use warp::Blend;
 use warp::{Accum, Pass, Target, Twin, WarpSettings, SKY_Z};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    strum::Display,
+    strum::EnumString,
+    strum::IntoStaticStr,
+    strum::VariantArray,
+    strum::EnumMessage,
+)]
 #[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
 pub enum Fill {
     /// A base pixel lands on at most one frame pixel; holes stay empty.
     None,
@@ -46,8 +59,21 @@ pub enum Fill {
     Both,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    strum::Display,
+    strum::EnumString,
+    strum::IntoStaticStr,
+    strum::VariantArray,
+    strum::EnumMessage,
+)]
 #[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
 pub enum TimeInterp {
     /// Each time's frame projected alone, blended per pixel (the paper's).
     Linear,
@@ -739,6 +765,22 @@ pub fn view_space_warning(scene: &Scene, what: &str, position: Vec3) -> Option<S
              expect holes and stretched surfaces where the bases saw too little"
         )
     })
+}
+
+/// The bake in `dir` and its scene (from `scene`, else the one its
+/// manifest names), checked against each other.
+pub fn open(dir: &Path, scene: Option<&Path>) -> Result<(Scene, Bake)> {
+    let manifest = crate::bake::Manifest::read(dir)?;
+    let path = scene.map_or(manifest.scene, Path::to_path_buf);
+    let scene = Scene::load(&path).with_context(|| {
+        format!(
+            "loading the scene of {} (pass --scene where it has moved)",
+            dir.display()
+        )
+    })?;
+    let bake = Bake::open(dir, &scene)?;
+    check_bake(&bake)?;
+    Ok((scene, bake))
 }
 
 /// Refuses a bake whose images are not base images this synthesis reads.

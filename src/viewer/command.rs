@@ -16,52 +16,44 @@ use super::render::{Rendered, Renderer, Request};
 use super::script::Script;
 use super::walker::{Input, Walker};
 use super::window::{self, Window};
-use crate::image::{self, png_io};
+use crate::image::png_io;
 use crate::scene::{CameraDesc, Scene, WalkPath};
-use crate::synth::command::SynthOptions;
 use crate::synth::walk::{frame_times, staging_dir};
 use crate::synth::Options;
 
-#[derive(clap::Args, Clone, Debug)]
-pub struct ViewArgs {
-    /// A complete bake directory (`rangewalk bake`).
+/// What `rangewalk view` is asked to do (the command line's `--` options).
+#[derive(Clone, Debug)]
+pub struct ViewSettings {
+    /// A complete bake directory.
     pub bake: PathBuf,
-    /// Window size at the start, `<W>x<H>`; frames follow the window's size.
-    #[arg(long, default_value = "512x512", value_parser = image::parse_size)]
+    /// The scene the bake was made from [`None`: the one its manifest names].
+    pub scene: Option<PathBuf>,
+    /// Window size at the start; frames follow the window's size.
     pub size: (u32, u32),
-    /// Named camera of the scene to start at [default: the scene's first].
-    #[arg(long)]
+    /// Named camera to start at [`None`: the scene's first].
     pub camera: Option<String>,
-    /// Scene time to start at [default: the animation's start].
-    #[arg(long)]
+    /// Scene time to start at [`None`: the animation's start].
     pub time: Option<f32>,
-    /// Play this walk path of the scene, looping: the viewer takes its
-    /// pose and time at every frame.
-    #[arg(long, conflicts_with = "input")]
+    /// A walk path to play, looping.
     pub path: Option<String>,
-    /// Scripted input, one step a line: `<frames> [key ...] [drag <dx>,<dy>]`
-    /// (keys: w a s d q e left right up down space comma period home f t shift).
-    #[arg(long)]
+    /// Scripted input ([`Script`]).
     pub input: Option<PathBuf>,
-    /// Stop after this many frames [scripted default: the script's length,
-    /// or one loop of the path].
-    #[arg(long)]
+    /// Frames to stop after.
     pub frames: Option<usize>,
-    /// Save the last frame shown (status lines included) as PNG.
-    #[arg(long)]
+    /// Where the last frame shown is saved as PNG.
     pub screenshot: Option<PathBuf>,
-    /// Save every frame shown as `frame-NNNN.png` in this folder.
-    #[arg(long)]
+    /// Where every frame shown is saved.
     pub record: Option<PathBuf>,
-    /// Moving speed in scene units per second [default: a quarter of the
-    /// view space's longest side per second].
-    #[arg(long)]
+    /// Moving speed in scene units per second [`None`: a quarter of the view
+    /// space's longest side per second].
     pub speed: Option<f32>,
-    /// Scene frames per second of a scripted run [default: the scene's].
-    #[arg(long)]
+    /// Scene frames per second of a scripted run [`None`: the scene's].
     pub fps: Option<f32>,
-    #[command(flatten)]
-    pub synth: SynthOptions,
+    pub options: Options,
+    /// Memory for bases held between frames.
+    pub base_memory_bytes: usize,
+    /// Exposure of the frames shown, in stops.
+    pub exposure: f32,
 }
 
 /// What a run showed.
@@ -109,53 +101,16 @@ enum Drive {
     Keys,
 }
 
-pub fn view(args: &ViewArgs) -> Result<()> {
-    let s = run(args)?;
-    let last = s.last.as_ref();
-    println!(
-        "{} frame(s) at {}: {:.1} frames/s synthesis, {:.1} frames/s shown, {:.3} s reading bases{}",
-        s.frames,
-        last.map_or("no size".into(), |r| format!(
-            "{}x{} from {} base image(s) of view(s) {}",
-            r.request.camera.width,
-            r.request.camera.height,
-            r.stats.images.len(),
-            list(&r.views)
-        )),
-        s.synthesis_fps,
-        s.shown_fps,
-        s.load_seconds,
-        args.screenshot
-            .as_ref()
-            .map_or(String::new(), |p| format!("; screenshot {}", p.display()))
-    );
-    if let Some(r) = last {
-        let c = &r.request.camera;
-        println!(
-            "last frame: position {}, direction {}, t = {} s{}",
-            c.position,
-            c.forward,
-            r.request.time,
-            if s.at_edge {
-                ", stopped at the view space's edge"
-            } else {
-                ""
-            }
-        );
-    }
-    Ok(())
-}
-
 /// Opens the window and runs until the frames are done or it is closed.
-pub fn run(args: &ViewArgs) -> Result<ViewSummary> {
-    let options = args.synth.options()?;
+pub fn run(args: &ViewSettings) -> Result<ViewSummary> {
+    let options = args.options;
     if let Some(p) = &args.screenshot {
         crate::image::check_output("--screenshot", p, crate::image::OutputKind::Png)?;
     }
     if let Some(dir) = &args.record {
         crate::image::check_output_dir("--record", dir)?;
     }
-    let (scene, bake) = args.synth.open(&args.bake)?;
+    let (scene, bake) = crate::synth::open(&args.bake, args.scene.as_deref())?;
     let scene = Arc::new(scene);
     let fps = args.fps.unwrap_or(scene.animation.fps);
     ensure!(
@@ -203,8 +158,8 @@ pub fn run(args: &ViewArgs) -> Result<ViewSummary> {
     let renderer = Renderer::start(
         Arc::clone(&scene),
         bake,
-        args.synth.base_memory << 20,
-        args.synth.exposure,
+        args.base_memory_bytes,
+        args.exposure,
     )?;
     let mut screen = Screen::new(window, args.size, record);
     let mut session = Session {
@@ -464,7 +419,8 @@ fn status(r: &Rendered, flags: Flags, frames_per_second: f64) -> Vec<String> {
     ]
 }
 
-fn list(v: &[usize]) -> String {
+/// Base views' indices as the status line and the run's summary show them.
+pub fn list(v: &[usize]) -> String {
     v.iter()
         .map(|i| i.to_string())
         .collect::<Vec<_>>()

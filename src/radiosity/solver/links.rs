@@ -6,9 +6,9 @@ use rayon::prelude::*;
 
 use super::hierarchy::{Hierarchy, Node, FLAT_COS};
 use super::linear::NodeRadiosity;
-use crate::accel::{offset_origin, RayEngine};
+use crate::accel::RayEngine;
 use crate::radiosity::formfactor::{point_to_triangle_sides, receiver_points};
-use crate::ray::Ray;
+use crate::ray::{offset_origin, Ray};
 
 /// How light gets from a link's source to its receiver.
 #[derive(Clone, Copy, Debug)]

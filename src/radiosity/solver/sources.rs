@@ -8,9 +8,9 @@ use rayon::prelude::*;
 
 use super::hierarchy::Hierarchy;
 use super::links::{hash3, unit};
-use crate::accel::{offset_origin, RayEngine};
-use crate::ray::Ray;
-use crate::scene::Light;
+use crate::accel::RayEngine;
+use crate::ray::{offset_origin, Ray};
+use crate::scene::{Light, PointArrival};
 
 /// Direct irradiance `[front, back]` on each surface node in `nodes`, from
 /// `points` sample points each, and the number of shadow rays traced.
@@ -35,18 +35,17 @@ pub fn direct(
                 for j in 0..points {
                     let x = point_in(n.tri, i, j, points);
                     for light in lights {
-                        let (dir, tmax, e) = match *light {
+                        let (shadow, e, cos) = match *light {
                             Light::Point {
                                 position,
                                 intensity,
                             } => {
-                                let d = position - x;
-                                let d2 = d.length_squared();
-                                if d2.is_nan() || d2 <= 0.0 {
+                                let Some(a) = PointArrival::new(position, intensity, x, n.normal)
+                                else {
                                     continue;
-                                }
-                                let cos = n.normal.dot(d) / d2.sqrt();
-                                (d, 1.0, (intensity * cos.abs() / d2, cos))
+                                };
+                                let cos = n.normal.dot(a.wi);
+                                (a.shadow, a.irradiance * cos.abs(), cos)
                             }
                             Light::Sun {
                                 direction,
@@ -56,17 +55,14 @@ pub fn direct(
                                 let w = direction.normalize_or_zero();
                                 let cos = n.normal.dot(w);
                                 let omega = Light::sun_solid_angle(angular_diameter_deg);
-                                (w, f32::INFINITY, (radiance * omega * cos.abs(), cos))
+                                let shadow = Ray::new(offset_origin(x, n.normal, w), w);
+                                (shadow, radiance * omega * cos.abs(), cos)
                             }
                         };
-                        let (e, cos) = e;
                         if cos == 0.0 || !e.is_finite() || e == Vec3::ZERO {
                             continue;
                         }
-                        let o = offset_origin(x, n.normal, dir);
-                        // The segment to a point light ends at the light.
-                        let dir = if tmax == 1.0 { x + dir - o } else { dir };
-                        rays.push(Ray::segment(o, dir, tmax));
+                        rays.push(shadow);
                         terms.push((k, usize::from(cos < 0.0), e / points as f32));
                     }
                 }

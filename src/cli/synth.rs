@@ -1,17 +1,18 @@
 //! The `synth` and `walk` commands.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
-
-use super::walk::{self, WalkSettings};
-use super::{
-    check_bake, view_space_warning, Blend, Fill, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET,
+use anyhow::Result;
+use rangewalk::bake::Bake;
+use rangewalk::eval::walkcheck::ReferenceChecks;
+use rangewalk::image;
+use rangewalk::scene::Scene;
+use rangewalk::synth::walk::{self, WalkSettings};
+use rangewalk::synth::{
+    self, view_space_warning, Blend, Fill, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET,
 };
-use crate::bake::Bake;
-use crate::eval::walkcheck::ReferenceChecks;
-use crate::image;
-use crate::scene::Scene;
+
+use super::choice;
 
 /// Frame size of `rangewalk synth` and `walk`.
 pub const DEFAULT_SIZE: &str = "512x512";
@@ -24,17 +25,17 @@ pub struct SynthOptions {
     #[arg(long)]
     pub scene: Option<PathBuf>,
     /// Hole filling (pinterp's -f0, -ff, -fb, -fa).
-    #[arg(long, value_enum, default_value_t = Options::default().fill)]
+    #[arg(long, value_parser = choice::<Fill>(), default_value_t = Options::default().fill)]
     pub fill: Fill,
     /// Interpolation between base times.
-    #[arg(long, value_enum, default_value_t = Options::default().time_interp)]
+    #[arg(long, value_parser = choice::<TimeInterp>(), default_value_t = Options::default().time_interp)]
     pub time_interp: TimeInterp,
     /// Base views to project, nearest first.
     #[arg(long, default_value_t = Options::default().bases)]
     pub bases: usize,
     /// Samples within the depth tolerance: averaged by ray angle, or the
     /// nearest base's.
-    #[arg(long, value_enum, default_value_t = Options::default().blend)]
+    #[arg(long, value_parser = choice::<Blend>(), default_value_t = Options::default().blend)]
     pub blend: Blend,
     /// Relative depth tolerance of the z-buffer.
     #[arg(long, default_value_t = Options::default().tolerance)]
@@ -55,7 +56,7 @@ pub struct SynthOptions {
     /// so that pixels a silhouette crosses show each surface by its share
     /// (with --fill foreground or both, whose splats cover subpixels).
     #[arg(long, default_value_t = Options::default().supersample,
-          value_parser = clap::value_parser!(u32).range(1..=crate::synth::MAX_SUPERSAMPLE as i64))]
+          value_parser = clap::value_parser!(u32).range(1..=synth::MAX_SUPERSAMPLE as i64))]
     pub supersample: u32,
     /// Memory for bases held between frames, in MiB.
     #[arg(long, default_value_t = DEFAULT_BUDGET >> 20)]
@@ -93,25 +94,9 @@ impl SynthOptions {
 
     /// The bake in `dir` and the scene it was made from, checked against
     /// each other.
-    pub fn open(&self, dir: &std::path::Path) -> Result<(Scene, Bake)> {
-        open(dir, self.scene.as_deref())
+    pub fn open(&self, dir: &Path) -> Result<(Scene, Bake)> {
+        synth::open(dir, self.scene.as_deref())
     }
-}
-
-/// The bake in `dir` and its scene (from `scene`, else the one its
-/// manifest names), checked against each other.
-pub fn open(dir: &std::path::Path, scene: Option<&std::path::Path>) -> Result<(Scene, Bake)> {
-    let manifest = crate::bake::Manifest::read(dir)?;
-    let path = scene.map_or(manifest.scene, std::path::Path::to_path_buf);
-    let scene = Scene::load(&path).with_context(|| {
-        format!(
-            "loading the scene of {} (pass --scene where it has moved)",
-            dir.display()
-        )
-    })?;
-    let bake = Bake::open(dir, &scene)?;
-    check_bake(&bake)?;
-    Ok((scene, bake))
 }
 
 #[derive(clap::Args, Clone, Debug)]

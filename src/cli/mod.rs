@@ -21,7 +21,8 @@ where
     let values = T::VARIANTS.iter().map(|&v| {
         let value = PossibleValue::new(v.into());
         match v.get_documentation() {
-            Some(doc) => value.help(doc),
+            // A doc comment's lines are one paragraph of help.
+            Some(doc) => value.help(doc.split_whitespace().collect::<Vec<_>>().join(" ")),
             None => value,
         }
     });

@@ -112,8 +112,13 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
         w.trim().parse::<u32>().map_err(|_| err())?,
         h.trim().parse::<u32>().map_err(|_| err())?,
     );
-    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
+    if w == 0 || h == 0 {
         return Err(err());
+    }
+    if w > MAX_SIDE || h > MAX_SIDE {
+        return Err(format!(
+            "size `{s}` has a side above the {MAX_SIDE} pixels a range image may have here"
+        ));
     }
     if u64::from(w) * u64::from(h) > MAX_PIXELS {
         return Err(format!(

@@ -179,7 +179,7 @@ impl PointArrival {
     pub fn new(position: Vec3, intensity: Vec3, p: Vec3, ng: Vec3) -> Option<Self> {
         let d = position - p;
         let dist2 = d.length_squared();
-        if !(dist2 > 0.0) {
+        if dist2.is_nan() || dist2 <= 0.0 {
             return None;
         }
         let wi = d / dist2.sqrt();
@@ -424,5 +424,37 @@ impl Scene {
             }
         }
         (lo, hi)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_point_light_arrives_as_intensity_over_distance_squared_with_a_shadow_ray_to_it() {
+        for scale in [1e-4f32, 1.0, 1e4] {
+            let light = Vec3::new(0.0, 2.0, 0.0) * scale;
+            let p = Vec3::new(1.5, 0.0, 0.0) * scale;
+            let a = PointArrival::new(light, Vec3::splat(10.0), p, Vec3::Y).unwrap();
+            let d2 = (light - p).length_squared();
+            assert!((a.irradiance.x * d2 / 10.0 - 1.0).abs() < 1e-5, "{scale}");
+            assert!((a.wi - (light - p) / d2.sqrt()).length() < 1e-6);
+            // The shadow ray starts just above the surface and ends at the light.
+            assert!(a.shadow.origin.y > p.y);
+            assert!((a.shadow.at(a.shadow.tmax) - light).length() <= 1e-5 * scale);
+        }
+        // At the light itself, or from a NaN point, nothing arrives.
+        assert!(PointArrival::new(Vec3::ONE, Vec3::ONE, Vec3::ONE, Vec3::Y).is_none());
+        assert!(PointArrival::new(Vec3::ONE, Vec3::ONE, Vec3::NAN, Vec3::Y).is_none());
+    }
+
+    #[test]
+    fn the_suns_solid_angle_keeps_its_precision_for_a_tiny_disk() {
+        // 2π(1 - cos θ) for the sun's 0.53° disk, in double precision.
+        let half = (0.53f64 / 2.0).to_radians();
+        let exact = 2.0 * std::f64::consts::PI * (1.0 - half.cos());
+        let ours = f64::from(Light::sun_solid_angle(0.53));
+        assert!((ours / exact - 1.0).abs() < 1e-5, "{ours} against {exact}");
     }
 }

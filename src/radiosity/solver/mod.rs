@@ -315,7 +315,7 @@ fn validate(scene: &Scene, s: &Simplified) -> Result<()> {
         let r = p.reflectance;
         if !r.is_finite() || r.min_element() < 0.0 || r.max_element() >= 1.0 {
             bail!(
-                "object `{name}`: diffuse reflectance [{}, {}, {}] must be in [0, 1) in every channel for radiosity to converge",
+                "object `{name}`: reflectance [{}, {}, {}] (diffuse plus glossy, as radiosity carries it) must be in [0, 1) in every channel for radiosity to converge",
                 r.x,
                 r.y,
                 r.z

@@ -410,7 +410,7 @@ impl<'a> Synthesizer<'a> {
             tolerance: opts.tolerance,
             splat: matches!(opts.fill, Fill::Foreground | Fill::Both),
             blend: opts.blend,
-            diffuse_direct: opts.time_interp == TimeInterp::Reshade,
+            alpha: matches!(opts.time_interp, TimeInterp::Linear | TimeInterp::Reshade),
         };
         let poses_t = self.scene.at(t);
         let moves_of = |base: &Base| -> Vec<Option<Affine3A>> {
@@ -685,12 +685,10 @@ fn blend_linear(a: &Accum, b: &Accum) -> Accum {
             // Mean fraction of the later views; the earlier ones carry 0.
             let alpha = (b.alpha / b.w).clamp(0.0, 1.0);
             let (ca, cb) = (a.radiance / a.w, b.radiance / b.w);
-            let (da, db) = (a.diffuse_direct / a.w, b.diffuse_direct / b.w);
             let nearer = if alpha <= 0.5 { a } else { b };
             Accum {
                 w: 1.0,
                 radiance: ca * (1.0 - alpha) + cb * alpha,
-                diffuse_direct: da * (1.0 - alpha) + db * alpha,
                 ..*nearer
             }
         }

@@ -25,34 +25,53 @@ const MAX_SPLAT: f32 = 64.0;
 /// Smallest share of a pixel a footprint's overlap counts for.
 const MIN_AREA: f32 = 1e-3;
 
-/// What a frame pixel has gathered: one cache line, so that a deposit
-/// touches one line.
+/// What a frame pixel has gathered, once every pass is projected.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[repr(align(64))]
 pub struct Accum {
     /// Distance from the frame's camera; 0 where nothing arrived.
     pub z: f32,
     /// Sum of the samples' weights and of their weighted values.
     pub w: f32,
     pub radiance: Vec3,
-    pub diffuse_direct: Vec3,
     /// Weighted sum of the samples' time fractions (linear blending) or
-    /// base times (motion compensation: which times re-shading finds the
-    /// pixel's light blended from).
+    /// base times (re-shading: which times it finds the pixel's light
+    /// blended from); 0 where neither asks for it.
     pub alpha: f32,
-    /// The heaviest sample's weight, world point (at the frame's time),
-    /// object and primitive: the surface the pixel shows.
-    pub best: f32,
+    /// The heaviest sample's world point (at the frame's time), object and
+    /// primitive: the surface the pixel shows.
     pub point: Vec3,
     pub object: u32,
     pub primitive: u32,
     /// How far (in pixels) background fill carried the value; 0 for a
     /// projected sample.
     pub reach: u16,
-    /// Whether a sample's footprint covers the pixel's centre: such a
+}
+
+/// What a frame pixel holds while passes are projected into it: only what
+/// the depth test and blending read and write, half a cache line, so that
+/// a band of the frame stays in the core's cache (with the whole `Accum`
+/// most deposits missed it). The heaviest sample is named by its base
+/// pixel and pass; its point and ids are looked up once the band is done.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(align(32))]
+struct Hot {
+    z: f32,
+    w: f32,
+    radiance: Vec3,
+    /// The heaviest sample's weight and base pixel.
+    best: f32,
+    pixel: u32,
+    /// The heaviest sample's pass, shifted left by one, and in the lowest
+    /// bit whether a sample's footprint covers the pixel's centre: such a
     /// sample decides the pixel's surface, and samples whose footprints
     /// only overlap the pixel's edge join it only within the tolerance.
-    pub covered: bool,
+    tag: u32,
+}
+
+impl Hot {
+    fn covered(&self) -> bool {
+        self.tag & 1 != 0
+    }
 }
 
 impl Accum {
@@ -158,8 +177,9 @@ pub struct WarpSettings {
     pub tolerance: f32,
     pub splat: bool,
     pub blend: Blend,
-    /// Whether samples carry their diffuse direct light (for re-shading).
-    pub diffuse_direct: bool,
+    /// Whether pixels sum their samples' `alpha` (linear blending and
+    /// re-shading read it).
+    pub alpha: bool,
 }
 
 /// The frame's camera with what projecting into it needs precomputed.
@@ -396,31 +416,64 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
         .enumerate()
         .for_each(|(k, (rows, items))| {
             let y0 = k as u32 * band;
-            // The buffer may hold an earlier frame: cleared here, where the
-            // band is about to be written, rather than all at once before.
-            rows.fill(Accum::default());
-            let mut scratch = Scratch::default();
-            for &(i, t) in items {
-                let pass = &passes[i as usize];
-                splat_tile(target, pass, t as usize, settings, rows, y0, &mut scratch);
-            }
-            // Overlap alone does not make a pixel seen: where no footprint
-            // covers its centre (a disocclusion's edge), it stays a hole
-            // for the fills rather than taking the foreground's edge.
-            for a in rows.iter_mut().filter(|a| !a.covered) {
-                *a = Accum::default();
-            }
+            SCRATCH.with_borrow_mut(|scratch| {
+                // Kept by the thread from band to band and frame to frame:
+                // fresh pages for every band cost more than projecting it.
+                let n = rows.len();
+                scratch.hot.clear();
+                scratch.hot.resize(n, Hot::default());
+                scratch.alpha.clear();
+                scratch
+                    .alpha
+                    .resize(if settings.alpha { n } else { 0 }, 0.0);
+                for &(i, t) in items {
+                    let pass = &passes[i as usize];
+                    splat_tile(target, (i, pass), t as usize, settings, y0, scratch);
+                }
+                resolve(passes, &scratch.hot, &scratch.alpha, rows);
+            });
         });
 }
 
+/// The band's pixels from what they gathered: the heaviest sample's point
+/// and ids looked up in its pass. Overlap alone does not make a pixel
+/// seen: where no footprint covers its centre (a disocclusion's edge), it
+/// stays a hole for the fills rather than taking the foreground's edge.
+fn resolve(passes: &[Pass], hot: &[Hot], alpha: &[f32], rows: &mut [Accum]) {
+    for (j, (a, h)) in rows.iter_mut().zip(hot).enumerate() {
+        if h.z == 0.0 || !h.covered() {
+            *a = Accum::default();
+            continue;
+        }
+        let pass = &passes[(h.tag >> 1) as usize];
+        let base = pass.base;
+        let k = h.pixel as usize;
+        let (p, object) = (base.points[k], base.object[k]);
+        let point = match pass.moves.get(object as usize).copied().flatten() {
+            Some(m) => m.transform_point3(p),
+            None => p,
+        };
+        *a = Accum {
+            z: h.z,
+            w: h.w,
+            radiance: h.radiance,
+            alpha: alpha.get(j).copied().unwrap_or(0.0),
+            point,
+            object,
+            primitive: base.primitive[k],
+            reach: 0,
+        };
+    }
+}
+
 /// Projects the tile's pixels (and the row and column after it) and
-/// deposits each pixel's sample in the rows `y0..` held by `rows`.
+/// deposits each pixel's sample in the band of rows `y0..` held by the
+/// scratch's pixels.
 fn splat_tile(
     target: &Target,
-    pass: &Pass,
+    (index, pass): (u32, &Pass),
     t: usize,
     settings: &WarpSettings,
-    rows: &mut [Accum],
     y0: u32,
     scratch: &mut Scratch,
 ) {
@@ -429,6 +482,12 @@ fn splat_tile(
     let all_shared = pass.tile_shared(t);
     let (bw, bh) = (base.width(), base.height());
     let fw = target.camera.width;
+    let Scratch {
+        projected: scratch,
+        layers,
+        hot: rows,
+        alpha: alphas,
+    } = scratch;
     let band_rows = rows.len() as u32 / fw;
     let y1 = y0 + band_rows;
     // The tile's pixels with a ring of their neighbours: a footprint's side
@@ -438,10 +497,6 @@ fn splat_tile(
     let x_end = (tile.x0 + TILE + 1).min(bw);
     let y_end = (tile.y0 + TILE + 1).min(bh);
     let sw = x_end - xs;
-    let Scratch {
-        projected: scratch,
-        layers,
-    } = scratch;
     scratch.clear();
     for y in ys..y_end {
         for x in xs..x_end {
@@ -478,21 +533,15 @@ fn splat_tile(
             scratch.push(projected);
         }
     }
-    // The tile's radiance (and diffuse direct light, and the twin's) as
-    // f32, converted a row at a time: one call per row lets the half-float
-    // conversion use the CPU's vector instructions where it has them.
+    // The tile's radiance (and the twin's) as f32, converted a row at a
+    // time: one call per row lets the half-float conversion use the CPU's
+    // vector instructions where it has them.
     let tw = (tile.x0 + TILE).min(bw) - tile.x0;
     let twin = match pass.twin {
         Some(Twin::Carries { base, .. }) => Some(base),
         _ => None,
     };
-    let wanted: [Option<&[[f16; 3]]>; 4] = [
-        Some(&base.radiance),
-        settings.diffuse_direct.then_some(&base.diffuse_direct[..]),
-        twin.map(|b| &b.radiance[..]),
-        twin.filter(|_| settings.diffuse_direct)
-            .map(|b| &b.diffuse_direct[..]),
-    ];
+    let wanted: [Option<&[[f16; 3]]>; 2] = [Some(&base.radiance), twin.map(|b| &b.radiance[..])];
     for (layer, out) in wanted.iter().zip(layers.iter_mut()) {
         let Some(layer) = layer else { continue };
         out.resize((3 * tw * TILE) as usize, 0.0);
@@ -504,7 +553,7 @@ fn splat_tile(
                 .convert_to_f32_slice(&mut out[row..row + 3 * tw as usize]);
         }
     }
-    let [rad, direct, twin_rad, twin_direct] = &*layers;
+    let [rad, twin_rad] = &*layers;
     let layer = |l: &[f32], x: u32, y: u32, scale: f32| {
         let i = 3 * ((y - tile.y0) * tw + (x - tile.x0)) as usize;
         Vec3::from_slice(&l[i..i + 3]) * scale
@@ -528,55 +577,6 @@ fn splat_tile(
             if shared && matches!(pass.twin, Some(Twin::CarriedBy(_))) {
                 continue;
             }
-            // Weight: how close the base's ray is to the frame's ray,
-            // 1/sin of the angle between them (sky: the same direction).
-            let weight = if s.sky {
-                MAX_WEIGHT
-            } else {
-                let (a, b) = (base.points[k] - base.camera.position, s.point - cam);
-                let sin2 = a.cross(b).length_squared() / (a.length_squared() * b.length_squared());
-                (1.0 / sin2).sqrt().min(MAX_WEIGHT)
-            };
-            let mut radiance = layer(rad, x, y, base.scale);
-            let mut diffuse_direct = if settings.diffuse_direct {
-                layer(direct, x, y, base.scale)
-            } else {
-                Vec3::ZERO
-            };
-            let (mut in_time, mut alpha) = (pass.weight, pass.alpha);
-            if let (
-                true,
-                Some(Twin::Carries {
-                    base: twin,
-                    weight,
-                    alpha: twin_alpha,
-                }),
-            ) = (shared, pass.twin)
-            {
-                // Nearest-first blending keeps the nearer time's value
-                // alone, as if the twin's sample had arrived second.
-                if settings.blend == Blend::Average {
-                    let sum = pass.weight + weight;
-                    radiance =
-                        (radiance * pass.weight + layer(twin_rad, x, y, twin.scale) * weight) / sum;
-                    if settings.diffuse_direct {
-                        diffuse_direct = (diffuse_direct * pass.weight
-                            + layer(twin_direct, x, y, twin.scale) * weight)
-                            / sum;
-                    }
-                    alpha = (pass.alpha * pass.weight + twin_alpha * weight) / sum;
-                    in_time = sum;
-                }
-            }
-            let sample = Sample {
-                weight: weight * in_time,
-                radiance,
-                diffuse_direct,
-                alpha,
-                point: s.point,
-                object: base.object[k],
-                primitive: base.primitive[k],
-            };
             // Offset and depth change to an agreeing neighbour, `d` pixels
             // along the base's rows (`row`) or columns, after the pixel or
             // else (negated) before it.
@@ -597,6 +597,90 @@ fn splat_tile(
                 step(1).or_else(|| step(-1))
             };
             let (n1, n2) = (neighbour(true), neighbour(false));
+            let (fx, fy) = (floor(s.px.x), floor(s.px.y));
+            let in_band =
+                |px: i64, py: i64| px >= 0 && py >= y0 as i64 && px < fw as i64 && py < y1 as i64;
+            let footprint = if settings.splat {
+                let short = |e: Vec2| e.abs().max_element() <= MAX_SPLAT;
+                // The footprint is centred on the pixel's projection, so that a
+                // base pixel projected into its own camera covers exactly its
+                // own pixel. A side with no agreeing neighbour on either hand
+                // (a sliver one base pixel wide) is the other side turned a
+                // quarter, or, for a lone pixel, the base pixel's own size:
+                // a frame pixel there would widen every thin foreground object
+                // over the gaps beside it.
+                let (e1, e2) = match (
+                    n1.map(|n| n.0).filter(|e| short(*e)),
+                    n2.map(|n| n.0).filter(|e| short(*e)),
+                ) {
+                    (Some(a), Some(b)) => (a, b),
+                    (Some(a), None) => (a, a.perp()),
+                    (None, Some(b)) => (-b.perp(), b),
+                    (None, None) => {
+                        let side = if s.sky {
+                            target.pixel_side(base, base.camera.position + s.point, 1.0)
+                        } else {
+                            target.pixel_side(base, base.points[k], s.z)
+                        };
+                        let side = side.min(MAX_SPLAT);
+                        (Vec2::X * side, Vec2::Y * side)
+                    }
+                };
+                let det = e1.perp_dot(e2);
+                (det.abs() >= 1e-6).then(|| {
+                    let extent = e1.abs() + e2.abs();
+                    let (lo, hi) = (s.px - 0.5 * extent, s.px + 0.5 * extent);
+                    let rows = (floor(lo.y).max(y0 as i64), ceil(hi.y).min(y1 as i64) - 1);
+                    let cols = (floor(lo.x).max(0), ceil(hi.x).min(fw as i64) - 1);
+                    (e1, e2, det, extent, rows, cols)
+                })
+            } else {
+                None
+            };
+            // What lands outside the band (the band's neighbours project
+            // the tiles they share with it too) costs no more than this.
+            match footprint {
+                Some((.., (ya, yb), (xa, xb))) if ya > yb || xa > xb => continue,
+                None if !in_band(fx, fy) => continue,
+                _ => {}
+            }
+            // Weight: how close the base's ray is to the frame's ray,
+            // 1/sin of the angle between them (sky: the same direction).
+            let weight = if s.sky {
+                MAX_WEIGHT
+            } else {
+                let (a, b) = (base.points[k] - base.camera.position, s.point - cam);
+                let sin2 = a.cross(b).length_squared() / (a.length_squared() * b.length_squared());
+                (1.0 / sin2).sqrt().min(MAX_WEIGHT)
+            };
+            let mut radiance = layer(rad, x, y, base.scale);
+            let (mut in_time, mut alpha) = (pass.weight, pass.alpha);
+            if let (
+                true,
+                Some(Twin::Carries {
+                    base: twin,
+                    weight,
+                    alpha: twin_alpha,
+                }),
+            ) = (shared, pass.twin)
+            {
+                // Nearest-first blending keeps the nearer time's value
+                // alone, as if the twin's sample had arrived second.
+                if settings.blend == Blend::Average {
+                    let sum = pass.weight + weight;
+                    radiance =
+                        (radiance * pass.weight + layer(twin_rad, x, y, twin.scale) * weight) / sum;
+                    alpha = (pass.alpha * pass.weight + twin_alpha * weight) / sum;
+                    in_time = sum;
+                }
+            }
+            let sample = Sample {
+                weight: weight * in_time,
+                radiance,
+                alpha,
+                pixel: k as u32,
+                tag: index << 1,
+            };
             // The depth gradient across the frame, so that the z-test
             // compares depths at the pixel centre: a surface seen at a
             // grazing angle changes depth by more than the tolerance
@@ -613,55 +697,23 @@ fn splat_tile(
                 _ => Vec2::ZERO,
             };
             let mut deposit = |px: i64, py: i64, area: f32, covers: bool| {
-                if px >= 0 && py >= y0 as i64 && px < fw as i64 && py < y1 as i64 {
-                    let a = &mut rows[((py as u32 - y0) * fw + px as u32) as usize];
+                if in_band(px, py) {
+                    let j = ((py as u32 - y0) * fw + px as u32) as usize;
+                    let a = &mut rows[j];
                     let centre = Vec2::new(px as f32 + 0.5, py as f32 + 0.5);
                     let z = if s.sky {
                         s.z
                     } else {
                         (s.z + grad.dot(centre - s.px)).clamp(0.5 * s.z, 2.0 * s.z)
                     };
-                    sample.deposit(a, z, area, covers, eps, settings.blend);
+                    sample.deposit(a, alphas.get_mut(j), z, area, covers, eps, settings.blend);
                 }
             };
-            let (fx, fy) = (floor(s.px.x), floor(s.px.y));
-            if !settings.splat {
+            let Some((e1, e2, det, extent, (ya, yb), (xa, xb))) = footprint else {
                 deposit(fx, fy, 1.0, true);
                 continue;
-            }
-            let short = |e: Vec2| e.abs().max_element() <= MAX_SPLAT;
-            // The footprint is centred on the pixel's projection, so that a
-            // base pixel projected into its own camera covers exactly its
-            // own pixel. A side with no agreeing neighbour on either hand
-            // (a sliver one base pixel wide) is the other side turned a
-            // quarter, or, for a lone pixel, the base pixel's own size:
-            // a frame pixel there would widen every thin foreground object
-            // over the gaps beside it.
-            let (e1, e2) = match (
-                n1.map(|n| n.0).filter(|e| short(*e)),
-                n2.map(|n| n.0).filter(|e| short(*e)),
-            ) {
-                (Some(a), Some(b)) => (a, b),
-                (Some(a), None) => (a, a.perp()),
-                (None, Some(b)) => (-b.perp(), b),
-                (None, None) => {
-                    let side = if s.sky {
-                        target.pixel_side(base, base.camera.position + s.point, 1.0)
-                    } else {
-                        target.pixel_side(base, base.points[k], s.z)
-                    };
-                    let side = side.min(MAX_SPLAT);
-                    (Vec2::X * side, Vec2::Y * side)
-                }
             };
-            let det = e1.perp_dot(e2);
-            if det.abs() < 1e-6 {
-                deposit(fx, fy, 1.0, true);
-                continue;
-            }
             let origin = s.px - 0.5 * (e1 + e2);
-            let extent = e1.abs() + e2.abs();
-            let (lo, hi) = (s.px - 0.5 * extent, s.px + 0.5 * extent);
             // Area weights: each frame pixel averages the base pixels over
             // it by how much of it they cover (a box filter of the base's
             // pixels, as the reference's pixels integrate the scene), not
@@ -672,8 +724,6 @@ fn splat_tile(
             let (bl, bh) = (s.px - half, s.px + half);
             let overlap =
                 |p: i64, l: f32, h: f32| (h.min(p as f32 + 1.0) - l.max(p as f32)).max(0.0);
-            let (ya, yb) = (floor(lo.y).max(y0 as i64), ceil(hi.y).min(y1 as i64) - 1);
-            let (xa, xb) = (floor(lo.x).max(0), ceil(hi.x).min(fw as i64) - 1);
             let inv = 1.0 / det;
             for py in ya..=yb {
                 let oy = overlap(py, bl.y, bh.y);
@@ -702,14 +752,21 @@ fn splat_tile(
     }
 }
 
-/// What a band's task reuses from tile to tile.
+/// What a thread reuses from tile to tile and band to band.
 #[derive(Default)]
 struct Scratch {
     /// The tile's pixels (and the row and column after it) projected.
     projected: Vec<Option<Projected>>,
-    /// Radiance, diffuse direct light, the twin's radiance and diffuse
-    /// direct light of the tile's pixels, as f32 triples.
-    layers: [Vec<f32>; 4],
+    /// Radiance and the twin's radiance of the tile's pixels, as f32
+    /// triples.
+    layers: [Vec<f32>; 2],
+    /// The band's pixels, and their sums of `alpha` where asked for.
+    hot: Vec<Hot>,
+    alpha: Vec<f32>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::default();
 }
 
 /// `⌊x⌋` without a call into libm (x86-64's baseline has no rounding
@@ -730,57 +787,66 @@ fn ceil(x: f32) -> i64 {
 struct Sample {
     weight: f32,
     radiance: Vec3,
-    diffuse_direct: Vec3,
     alpha: f32,
-    point: Vec3,
-    object: u32,
-    primitive: u32,
+    /// The base pixel and its pass (shifted left by one) as [`Hot`] names
+    /// them.
+    pixel: u32,
+    tag: u32,
 }
 
 impl Sample {
     /// Adds the sample, weighted by the share `area` of the pixel its
-    /// footprint overlaps. A sample whose footprint `covers` the pixel's
-    /// centre replaces what only overlapping samples put there unless it
-    /// agrees with it in depth; one that merely overlaps never displaces a
-    /// covering one (so foreground edges do not spill over the
-    /// background) and joins it only within the tolerance.
+    /// footprint overlaps (and its `alpha` to the pixel's sum, where one is
+    /// kept). A sample whose footprint `covers` the pixel's centre replaces
+    /// what only overlapping samples put there unless it agrees with it in
+    /// depth; one that merely overlaps never displaces a covering one (so
+    /// foreground edges do not spill over the background) and joins it
+    /// only within the tolerance.
+    #[allow(clippy::too_many_arguments)]
     #[inline]
-    fn deposit(&self, a: &mut Accum, z: f32, area: f32, covers: bool, eps: f32, blend: Blend) {
+    fn deposit(
+        &self,
+        a: &mut Hot,
+        alpha: Option<&mut f32>,
+        z: f32,
+        area: f32,
+        covers: bool,
+        eps: f32,
+        blend: Blend,
+    ) {
         let w = self.weight * area;
         let nearer = z < a.z * (1.0 - eps);
         let within = !nearer && z <= a.z * (1.0 + eps);
-        let replace = a.is_empty()
-            || match (covers, a.covered) {
+        let replace = a.z == 0.0
+            || match (covers, a.covered()) {
                 (true, false) => !within,
                 (false, true) => false,
                 _ => nearer,
             };
         if replace {
-            *a = Accum {
+            *a = Hot {
                 z,
                 w,
                 radiance: self.radiance * w,
-                diffuse_direct: self.diffuse_direct * w,
-                alpha: self.alpha * w,
                 best: w,
-                point: self.point,
-                object: self.object,
-                primitive: self.primitive,
-                reach: 0,
-                covered: covers,
+                pixel: self.pixel,
+                tag: self.tag | covers as u32,
             };
+            if let Some(alpha) = alpha {
+                *alpha = self.alpha * w;
+            }
         } else if within && blend == Blend::Average {
             a.w += w;
             a.radiance += self.radiance * w;
-            a.diffuse_direct += self.diffuse_direct * w;
-            a.alpha += self.alpha * w;
+            if let Some(alpha) = alpha {
+                *alpha += self.alpha * w;
+            }
             a.z = a.z.min(z);
-            a.covered |= covers;
+            a.tag |= covers as u32;
             if w > a.best {
                 a.best = w;
-                a.point = self.point;
-                a.object = self.object;
-                a.primitive = self.primitive;
+                a.pixel = self.pixel;
+                a.tag = self.tag | (a.tag & 1);
             }
         }
     }

@@ -66,8 +66,8 @@ pub struct Operator<'a> {
 }
 
 impl<'a> Operator<'a> {
-    pub fn new(h: &'a Hierarchy, mut links: Vec<Link>) -> Self {
-        links.par_sort_unstable_by_key(|l| (l.r, l.s));
+    pub fn new(h: &'a Hierarchy, links: Vec<Link>) -> Self {
+        let links = sorted(links);
         let mut groups = Vec::new();
         let mut start = 0;
         for i in 1..=links.len() {
@@ -257,6 +257,33 @@ impl<'a> Operator<'a> {
             .map(|((a, b), &w)| (a[0] * b[0] + a[1] * b[1]).as_dvec3() * w)
             .sum()
     }
+}
+
+/// `links` ordered by receiver, then source. The rounds after the first
+/// hand over the previous operator's links, still in order, with the new
+/// ones behind them: only those are sorted, then merged in. Pairs are
+/// unique (refinement reaches each once), so the order is the one a full
+/// sort gives.
+fn sorted(mut links: Vec<Link>) -> Vec<Link> {
+    let key = |l: &Link| (l.r, l.s);
+    let prefix = links
+        .windows(2)
+        .position(|w| key(&w[0]) > key(&w[1]))
+        .map_or(links.len(), |i| i + 1);
+    let mut tail = links.split_off(prefix);
+    if tail.is_empty() {
+        return links;
+    }
+    tail.par_sort_unstable_by_key(key);
+    let mut out = Vec::with_capacity(links.len() + tail.len());
+    let (mut a, mut b) = (links.into_iter().peekable(), tail.into_iter().peekable());
+    while let (Some(x), Some(y)) = (a.peek(), b.peek()) {
+        let next = if key(x) <= key(y) { a.next() } else { b.next() };
+        out.extend(next);
+    }
+    out.extend(a);
+    out.extend(b);
+    out
 }
 
 /// The push hands a leaf its ancestors' area-averaged form factors, which

@@ -4,7 +4,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::hierarchy::{Hierarchy, Node, FLAT_COS};
+use super::hierarchy::{Hierarchy, Node, FLAT_COS, NONE};
 use super::linear::NodeRadiosity;
 use crate::accel::RayEngine;
 use crate::radiosity::formfactor::{point_to_triangle_sides, receiver_points};
@@ -211,11 +211,6 @@ impl Refiner<'_> {
             }
             let b = self.surface_b(h, s);
             let bmax = b[0].max(b[1]).max_element();
-            range = spread.unwrap_or_else(|| ff_range(nr, ns));
-            let [lo, hi] = range;
-            if hi.is_nan() || hi <= 0.0 {
-                return (Verdict::Drop, range);
-            }
             // What piecewise-constant irradiance gets wrong over the
             // receiver (the kernel's spread), plus a share of the
             // magnitude for visibility a few rays do not resolve.
@@ -224,6 +219,26 @@ impl Refiner<'_> {
             } else {
                 VISIBILITY_SHARE
             };
+            range = match spread {
+                Some(known) => known,
+                None => {
+                    // The centroid's form factor alone is a lower bound on
+                    // the largest: when its share already exceeds the
+                    // bound, the pair is split without the corners (most
+                    // pairs the refinement visits are split). A pair
+                    // neither of whose ends splits needs its spread.
+                    let centre = ff_at(nr, ns, nr.center);
+                    let can_split = h.splittable(r) || h.splittable(s);
+                    if can_split && share * centre * nr.area * bmax > self.max_error {
+                        return (Verdict::Split, range);
+                    }
+                    ff_range(nr, ns, centre)
+                }
+            };
+            let [lo, hi] = range;
+            if hi.is_nan() || hi <= 0.0 {
+                return (Verdict::Drop, range);
+            }
             ((hi - lo) + share * hi) * nr.area * bmax
         } else {
             if flat_coplanar(nr, ns) {
@@ -312,22 +327,27 @@ fn flat_coplanar(r: &Node, s: &Node) -> bool {
     r.plane[1] - at <= tol && (along[0] - at).abs() <= tol && (along[1] - at).abs() <= tol
 }
 
+/// The point form factor from `x` on `r` to `s`, the larger of the two
+/// sides.
+fn ff_at(r: &Node, s: &Node, x: Vec3) -> f32 {
+    let f = point_to_triangle_sides(x, r.normal, s.tri);
+    f[0].max(f[1])
+}
+
 /// The smallest and largest point form factor (either side) over the
-/// receiver: at its centroid and near its corners, where an adjacent source
-/// is seen most.
-fn ff_range(r: &Node, s: &Node) -> Spread {
+/// receiver: at its centroid (`centre`, already evaluated) and near its
+/// corners, where an adjacent source is seen most.
+fn ff_range(r: &Node, s: &Node, centre: f32) -> Spread {
     let c = r.center;
     let [a, b, d] = r.tri;
     let near = |p: Vec3| p + (c - p) * 0.05;
-    [c, near(a), near(b), near(d)]
+    [near(a), near(b), near(d)]
         .iter()
-        .map(|&x| {
-            let f = point_to_triangle_sides(x, r.normal, s.tri);
-            f[0].max(f[1])
-        })
-        .fold([f32::INFINITY, 0.0f32], |[lo, hi], f| {
-            [lo.min(f), hi.max(f)]
-        })
+        .map(|&x| ff_at(r, s, x))
+        .fold(
+            [f32::INFINITY.min(centre), 0.0f32.max(centre)],
+            |[lo, hi], f| [lo.min(f), hi.max(f)],
+        )
 }
 
 /// Form factors and visibility of `pairs`, traced in batches. Returns the
@@ -427,6 +447,14 @@ struct Visibility {
 
 impl Visibility {
     fn weighed(samples: &[Sample], weight: &dyn Fn(u32, usize) -> f32) -> Self {
+        // Most links are wholly open, and then every fraction is one
+        // whatever the weights: skip weighing them.
+        if samples.iter().all(|s| s.open) {
+            return Self {
+                overall: 1.0,
+                pair: [[1.0; 2]; 2],
+            };
+        }
         let by = |w: &dyn Fn(&Sample) -> f32| {
             let mut open = [[0.0f32; 2]; 2];
             let mut all = [[0.0f32; 2]; 2];
@@ -489,8 +517,8 @@ fn transfer(h: &Hierarchy, r: u32, s: u32, vis: &Visibility, spread: Spread) -> 
 /// ending just short of `s` so that neither end counts as a blocker, with
 /// the source leaf it reaches and the sides it joins (not yet traced).
 fn shadow_ray(h: &Hierarchy, r: u32, s: u32, seed: u32, j: usize, n: usize) -> (Ray, Sample) {
-    let (pr, nr, _) = sample_point(h, r, seed, j, n);
-    let (ps, ns, leaf) = sample_point(h, s, seed ^ 0x9e37_79b9, j, n);
+    let (pr, nr, _) = sample_point(h, r, seed, j, n, false);
+    let (ps, ns, leaf) = sample_point(h, s, seed ^ 0x9e37_79b9, j, n, true);
     let mut a = offset_origin(pr, nr, ps - pr);
     let b = offset_origin(ps, ns, pr - ps);
     // A receiving cluster's directional model already keeps light from the
@@ -530,10 +558,18 @@ fn sphere_span(o: Vec3, d: Vec3, center: Vec3, radius: f32) -> Option<[f32; 2]> 
     })
 }
 
-/// A point on the surface of node `i`, the normal there and the leaf that
-/// holds it: stratified over a triangle, or on an area-chosen patch of a
-/// cluster.
-fn sample_point(h: &Hierarchy, mut i: u32, seed: u32, j: usize, n: usize) -> (Vec3, Vec3, u32) {
+/// A point on the surface of node `i`, the normal there and, if `leaf`,
+/// the leaf that holds it (`NONE` otherwise: only the source end's leaf
+/// weighs a ray): stratified over a triangle, or on an area-chosen patch
+/// of a cluster.
+fn sample_point(
+    h: &Hierarchy,
+    mut i: u32,
+    seed: u32,
+    j: usize,
+    n: usize,
+    leaf: bool,
+) -> (Vec3, Vec3, u32) {
     let mut u = (j as f32 + unit(hash3(seed, j as u32, 1))) / n as f32;
     while h.node(i).cluster {
         let kids = &h.node(i).children;
@@ -557,7 +593,12 @@ fn sample_point(h: &Hierarchy, mut i: u32, seed: u32, j: usize, n: usize) -> (Ve
     }
     let [p0, p1, p2] = node.tri;
     let p = p0 + (p1 - p0) * a + (p2 - p0) * b;
-    (p, node.normal, leaf_at(h, i, [1.0 - a - b, a, b]))
+    let at = if leaf {
+        leaf_at(h, i, [1.0 - a - b, a, b])
+    } else {
+        NONE
+    };
+    (p, node.normal, at)
 }
 
 /// The leaf below surface node `i` that holds the point of barycentric

@@ -46,7 +46,7 @@ fn sequence_summary(qualities: &[synthesis::SequenceQuality]) {
             println!(
                 "q = {}, {}: {} base image(s), {:.3} s synthesis + {:.3} s loading for {} frames, mean LRMS {:.4}",
                 q.quality,
-                synthesis::mode_name(m.mode),
+                <&str>::from(m.mode),
                 q.baked_images,
                 m.synth_s(),
                 m.load_s(),

@@ -17,9 +17,7 @@ use super::plot::{self, Plot, Scale, Series};
 use super::reference::Reference;
 use super::report::{sig, Table};
 use super::staging::Staging;
-use super::synthesis::{
-    self, cell, mode_name, CommonArgs, Sequence, SequenceArgs, SequenceQuality, Shot,
-};
+use super::synthesis::{self, cell, CommonArgs, Sequence, SequenceArgs, SequenceQuality, Shot};
 use crate::plan::Plan;
 use crate::synth::{Options, TimeInterp};
 
@@ -179,7 +177,7 @@ fn markdown(r: &MotionResults) -> Result<String> {
         r.times[0],
         r.times[r.times.len() - 1],
         fps,
-        super::views::fill_name(r.args.sequence.fill)
+        <&str>::from(r.args.sequence.fill)
     );
     md.push_str(&synthesis::differences(
         c,
@@ -275,7 +273,7 @@ fn markdown(r: &MotionResults) -> Result<String> {
             let p = paper(q.quality).filter(|_| m.mode == TimeInterp::Linear);
             let bake = q.bake_s();
             t.push([
-                format!("q = {}, {}", q.quality, mode_name(m.mode)),
+                format!("q = {}, {}", q.quality, <&str>::from(m.mode)),
                 cell(bake, 3),
                 sig(m.synth_s(), 3),
                 sig(m.load_s(), 3),
@@ -332,7 +330,7 @@ fn qualities_csv(r: &MotionResults) -> Result<Table> {
         for m in &q.modes {
             t.push([
                 q.quality.to_string(),
-                mode_name(m.mode).to_string(),
+                <&str>::from(m.mode).to_string(),
                 q.baked_images.to_string(),
                 q.plan.views.first().map_or(String::new(), |v| {
                     v.times
@@ -367,7 +365,7 @@ fn error_vs_time_plot(dir: &Path, r: &MotionResults) -> Result<()> {
         .time_interp
         .iter()
         .map(|&mode| Series {
-            label: mode_name(mode).to_string(),
+            label: <&str>::from(mode).to_string(),
             points: r
                 .qualities
                 .iter()

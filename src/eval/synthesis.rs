@@ -746,7 +746,7 @@ impl Sequence<'_> {
                 truths,
                 &opts,
                 self.setup.flip.as_ref(),
-                &format!("{tag} {}", mode_name(mode)),
+                &format!("{tag} {}", <&str>::from(mode)),
             )?;
             modes.push(ModeRun {
                 mode,
@@ -766,19 +766,11 @@ impl Sequence<'_> {
     }
 }
 
-pub fn mode_name(mode: TimeInterp) -> &'static str {
-    match mode {
-        TimeInterp::Linear => "linear",
-        TimeInterp::Motion => "motion",
-        TimeInterp::Reshade => "reshade",
-    }
-}
-
 /// The modes' names, comma-separated.
 pub fn modes_list(modes: &[TimeInterp]) -> String {
     modes
         .iter()
-        .map(|&m| mode_name(m))
+        .map(|&m| <&str>::from(m))
         .collect::<Vec<_>>()
         .join(", ")
 }
@@ -824,7 +816,7 @@ pub fn frames_csv(qualities: &[SequenceQuality]) -> Result<Table> {
             for f in &m.frames {
                 t.push([
                     q.quality.to_string(),
-                    mode_name(m.mode).to_string(),
+                    <&str>::from(m.mode).to_string(),
                     f.frame.to_string(),
                     f.time.to_string(),
                     f.error.lrms.to_string(),
@@ -851,7 +843,7 @@ fn error_per_frame_plot(dir: &Path, qualities: &[SequenceQuality]) -> Result<()>
         .iter()
         .flat_map(|q| {
             q.modes.iter().map(move |m| Series {
-                label: format!("q = {}, {}", q.quality, mode_name(m.mode)),
+                label: format!("q = {}, {}", q.quality, <&str>::from(m.mode)),
                 points: m
                     .frames
                     .iter()

@@ -265,7 +265,7 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
                         &[truth],
                         &opts,
                         setup.flip.as_ref(),
-                        &format!("{tag} {what}, fill {}", fill_name(fill)),
+                        &format!("{tag} {what}, fill {}", <&str>::from(fill)),
                     )?;
                     Ok(FillRun {
                         fill,
@@ -415,15 +415,6 @@ pub fn flanking(along: &[f32], at: Option<f32>) -> Option<(usize, usize, f32)> {
                 Some(b) if (b.2 - 0.5).abs() <= (p.2 - 0.5).abs() => Some(b),
                 _ => Some(p),
             }),
-    }
-}
-
-pub fn fill_name(fill: Fill) -> &'static str {
-    match fill {
-        Fill::None => "none",
-        Fill::Foreground => "foreground",
-        Fill::Background => "background",
-        Fill::Both => "both",
     }
 }
 
@@ -619,7 +610,7 @@ fn markdown(r: &ViewsResults) -> Result<String> {
             let fr = &f.frame;
             t.push([
                 name,
-                fill_name(f.fill).to_string(),
+                <&str>::from(f.fill).to_string(),
                 sig(spacing as f64, 3),
                 sig(fr.synth_s, 3),
                 sig(fr.load_s, 3),
@@ -706,7 +697,7 @@ fn qualities_csv(r: &ViewsResults) -> Result<Table> {
         ] {
             rows.extend(
                 runs.iter()
-                    .map(|f| (source, fill_name(f.fill), spacing, bake, f.frame.clone())),
+                    .map(|f| (source, <&str>::from(f.fill), spacing, bake, f.frame.clone())),
             );
         }
         let d = &q.direct;
@@ -773,7 +764,7 @@ fn plots(dir: &Path, r: &ViewsResults) -> Result<()> {
         .iter()
         .enumerate()
         .map(|(k, &fill)| Series {
-            label: format!("fill {}", fill_name(fill)),
+            label: format!("fill {}", <&str>::from(fill)),
             points: r
                 .qualities
                 .iter()
@@ -812,7 +803,7 @@ fn plots(dir: &Path, r: &ViewsResults) -> Result<()> {
         .iter()
         .enumerate()
         .map(|(k, &fill)| Series {
-            label: format!("fill {}", fill_name(fill)),
+            label: format!("fill {}", <&str>::from(fill)),
             points: r
                 .qualities
                 .iter()

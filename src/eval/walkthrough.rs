@@ -23,8 +23,8 @@ use super::report::{sig, Table};
 use super::staging::Staging;
 use super::summary::{convergence_series, convergence_table};
 use super::synthesis::{
-    self, break_even, cell, equal_error_seconds, mode_name, speedup, CommonArgs, Measured, ModeRun,
-    Reach, Sequence, SequenceArgs, SequenceQuality, Shot,
+    self, break_even, cell, equal_error_seconds, speedup, CommonArgs, Measured, ModeRun, Reach,
+    Sequence, SequenceArgs, SequenceQuality, Shot,
 };
 use crate::plan::Plan;
 use crate::synth::{Options, TimeInterp};
@@ -314,7 +314,7 @@ fn markdown(r: &WalkResults) -> Result<String> {
         a.path,
         r.times[0],
         r.times[n - 1],
-        super::views::fill_name(a.sequence.fill),
+        <&str>::from(a.sequence.fill),
         a.bases
     );
     md.push_str(&synthesis::differences(
@@ -403,7 +403,7 @@ fn markdown(r: &WalkResults) -> Result<String> {
         for m in &q.modes {
             let am = amortized(q, m, &r.convergence, m_frames);
             t.push([
-                format!("q = {}, {}", q.quality, mode_name(m.mode)),
+                format!("q = {}, {}", q.quality, <&str>::from(m.mode)),
                 sig(m.synth_s(), 3),
                 sig(m.load_s(), 3),
                 sig(m.per_frame_s(), 3),
@@ -487,7 +487,7 @@ fn qualities_csv(r: &WalkResults) -> Result<Table> {
             let am = amortized(q, m, &r.convergence, r.args.amortize_frames);
             t.push([
                 q.quality.to_string(),
-                mode_name(m.mode).to_string(),
+                <&str>::from(m.mode).to_string(),
                 q.plan.views.len().to_string(),
                 q.planned_images().to_string(),
                 q.baked_images.to_string(),
@@ -524,7 +524,7 @@ fn error_vs_time_plot(dir: &Path, r: &WalkResults) -> Result<()> {
     for frames in [n, r.args.amortize_frames] {
         for &mode in &r.args.sequence.time_interp {
             series.push(Series {
-                label: format!("{}, bake over {frames} frames", mode_name(mode)),
+                label: format!("{}, bake over {frames} frames", <&str>::from(mode)),
                 points: r
                     .qualities
                     .iter()

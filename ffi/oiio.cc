@@ -3,7 +3,9 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <algorithm>
 #include <cstring>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -131,6 +133,17 @@ void write_rgb8(rust::Str path_str, uint32_t width, uint32_t height,
     finish(*out, path, ok);
 }
 
+rust::Slice<const uint32_t> Words::channel(size_t c) const {
+    if (c >= channels.size())
+        throw std::out_of_range("no channel " + std::to_string(c));
+    return {channels[c].data(), channels[c].size()};
+}
+
+void Words::release(size_t c) {
+    if (c < channels.size())
+        std::vector<uint32_t>().swap(channels[c]);
+}
+
 Decoded read_image(rust::Str path_str) {
     std::string path(path_str);
     auto in = OIIO::ImageInput::open(path);
@@ -142,42 +155,61 @@ Decoded read_image(rust::Str path_str) {
     if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
         fail(path, "image has no pixels", "");
 
-    size_t n = size_t(spec.width) * spec.height;
+    size_t width = size_t(spec.width), n = width * spec.height;
     size_t stride = spec.pixel_bytes(true);
-    std::vector<unsigned char> native(n * stride);
-    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeUnknown, native.data()))
-        fail(path, "cannot read pixels", in->geterror());
-
     Decoded d;
     d.raster.width = uint32_t(spec.width);
     d.raster.height = uint32_t(spec.height);
     d.raster.integer_samples = !spec.format.is_floating_point();
-    // One vector for every channel, converted in place: no word crosses
-    // the bridge on its own.
-    d.words = std::make_unique<std::vector<uint32_t>>(n * size_t(spec.nchannels));
+    d.words = std::make_unique<Words>();
+    std::vector<OIIO::TypeDesc> formats, targets;
+    std::vector<size_t> offsets;
     size_t offset = 0;
     for (int c = 0; c < spec.nchannels; ++c) {
         OIIO::TypeDesc format = spec.channelformat(c);
-        std::string name(spec.channel_name(c));
         Channel ch;
-        ch.name = name;
+        ch.name = std::string(spec.channel_name(c));
         ch.sample = format == OIIO::TypeUInt32 ? Sample::U32 : Sample::F32;
-        OIIO::TypeDesc target = ch.sample == Sample::U32 ? OIIO::TypeUInt32 : OIIO::TypeFloat;
-        uint32_t *out = d.words->data() + size_t(c) * n;
-        if (format == target) {
-            // Words stored as they are wanted: a plain strided copy
-            // (convert_image would call memcpy once per pixel).
-            const unsigned char *in_px = native.data() + offset;
-            for (size_t i = 0; i < n; ++i, in_px += stride)
-                std::memcpy(out + i, in_px, sizeof(uint32_t));
-        } else if (!OIIO::convert_image(1, spec.width, spec.height, 1, native.data() + offset, format,
-                                 stride, stride * spec.width, OIIO::AutoStride, out, target,
-                                 sizeof(uint32_t),
-                                 sizeof(uint32_t) * spec.width, OIIO::AutoStride))
-            fail(path, "cannot convert channel " + name + " from " + format.c_str(),
-                 "");
         d.raster.channels.push_back(std::move(ch));
+        formats.push_back(format);
+        targets.push_back(format == OIIO::TypeUInt32 ? OIIO::TypeUInt32 : OIIO::TypeFloat);
+        offsets.push_back(offset);
         offset += format.size();
+        d.words->channels.emplace_back(n);
+    }
+    // A strip of rows at a time in the file's own layout, split into one
+    // vector per channel: the whole interleaved image would double what
+    // a read holds at its peak (half a gigabyte for a 2,544-pixel sphere).
+    // 64 rows are whole blocks of every EXR compression. Tiled files are
+    // read whole.
+    const bool tiled = spec.tile_width != 0;
+    const int strip = tiled ? spec.height : 64;
+    std::vector<unsigned char> native(size_t(strip) * width * stride);
+    for (int y0 = spec.y; y0 < spec.y + spec.height; y0 += strip) {
+        int y1 = std::min(y0 + strip, spec.y + spec.height);
+        size_t rows = size_t(y1 - y0), first = size_t(y0 - spec.y) * width;
+        bool ok = tiled ? in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeUnknown, native.data())
+                        : in->read_scanlines(0, 0, y0, y1, 0, 0, spec.nchannels,
+                                             OIIO::TypeUnknown, native.data());
+        if (!ok)
+            fail(path, "cannot read pixels", in->geterror());
+        for (int c = 0; c < spec.nchannels; ++c) {
+            uint32_t *out = d.words->channels[c].data() + first;
+            const unsigned char *px = native.data() + offsets[c];
+            if (formats[c] == targets[c]) {
+                // Words stored as they are wanted: a plain strided copy
+                // (convert_image would call memcpy once per pixel).
+                for (size_t i = 0; i < rows * width; ++i, px += stride)
+                    std::memcpy(out + i, px, sizeof(uint32_t));
+            } else if (!OIIO::convert_image(1, spec.width, int(rows), 1, px, formats[c], stride,
+                                            stride * width, OIIO::AutoStride, out, targets[c],
+                                            sizeof(uint32_t), sizeof(uint32_t) * width,
+                                            OIIO::AutoStride))
+                fail(path,
+                     "cannot convert channel " + std::string(spec.channel_name(c)) + " from " +
+                         formats[c].c_str(),
+                     "");
+        }
     }
     for (const OIIO::ParamValue &p : spec.extra_attribs) {
         bool known = false;

@@ -6,7 +6,10 @@
 
 #include "rust/cxx.h"
 
+#include <cstddef>
+#include <cstdint>
 #include <exception>
+#include <vector>
 
 // cxx's own handler catches std::exception only; anything else thrown
 // through a bridged call would cross into Rust, which is undefined. This
@@ -31,6 +34,14 @@ namespace oiio {
 struct Raster;
 struct Decoded;
 
+// The channels of a file read, one vector each, so that the reader can
+// free each one once it has taken it.
+struct Words {
+    std::vector<std::vector<uint32_t>> channels;
+    rust::Slice<const uint32_t> channel(size_t c) const;
+    void release(size_t c);
+};
+
 // Writes every channel of `image` and its attributes to `path` in the
 // named OpenImageIO format ("openexr", "hdr", ...).
 void write_image(rust::Str path, rust::Str format, const Raster &image);
@@ -42,7 +53,7 @@ void write_rgb8(rust::Str path, uint32_t width, uint32_t height,
 // Reads the first subimage of `path`: 32-bit unsigned channels verbatim,
 // every other channel converted to float (integer formats normalized to
 // [0, 1]), plus the float and string attributes of its header. The
-// channels' words are in `Decoded::words`, one channel after another.
+// channels' words are in `Decoded::words`, in the raster's channel order.
 Decoded read_image(rust::Str path);
 
 }  // namespace oiio

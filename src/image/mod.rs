@@ -222,7 +222,7 @@ pub fn read_exr_with_layers_hashed(
 /// planes, whichever back end decoded them.
 fn gather_layers(
     path: &Path,
-    planes: planes::Planes,
+    mut planes: planes::Planes,
     layers: &[&str],
 ) -> Result<(RangeImage, Vec<Vec<Vec3>>, u64)> {
     // The hash is one serial pass over every byte: overlap it with the
@@ -237,6 +237,7 @@ fn gather_layers(
         },
     );
     let values = values.with_context(|| format!("{}: not a base image", path.display()))?;
+    planes.keep_range_channels();
     let image = planes
         .into_range()
         .with_context(|| format!("{}: not a range image", path.display()))?;

@@ -33,10 +33,10 @@ mod ffi {
     }
 
     /// A file read: its channels' `data` are empty, their words are in
-    /// `words`, one whole channel after another in `channels`' order.
+    /// `words`, in `channels`' order.
     struct Decoded {
         raster: Raster,
-        words: UniquePtr<CxxVector<u32>>,
+        words: UniquePtr<Words>,
     }
 
     struct Raster {
@@ -58,6 +58,13 @@ mod ffi {
         fn write_image(path: &str, format: &str, image: &Raster) -> Result<()>;
         fn write_rgb8(path: &str, width: u32, height: u32, rgb: &[u8]) -> Result<()>;
         fn read_image(path: &str) -> Result<Decoded>;
+
+        /// One vector of words per channel of a file read.
+        type Words;
+        /// Channel `c`'s words.
+        fn channel(self: &Words, c: usize) -> Result<&[u32]>;
+        /// Frees channel `c`'s words.
+        fn release(self: Pin<&mut Words>, c: usize);
     }
 }
 
@@ -143,31 +150,32 @@ pub fn read_texture(path: &Path) -> Result<Texture> {
 }
 
 fn planes(decoded: ffi::Decoded) -> Result<Planes> {
-    let ffi::Decoded { raster, words } = decoded;
-    let words = words
-        .as_ref()
-        .ok_or_else(|| anyhow!("the image reader returned no pixels"))?
-        .as_slice();
+    let ffi::Decoded { raster, mut words } = decoded;
     let n = raster.width as usize * raster.height as usize;
-    anyhow::ensure!(
-        words.len() == n * raster.channels.len(),
-        "the image reader returned {} words for {} channels of {n} pixels",
-        words.len(),
-        raster.channels.len()
-    );
-    let channels = raster
-        .channels
-        .into_iter()
-        .zip(words.chunks_exact(n.max(1)))
-        .map(|(c, words)| {
-            let plane = if c.sample == ffi::Sample::U32 {
-                Plane::U32(words.to_vec())
-            } else {
-                Plane::F32(words.par_iter().map(|&w| f32::from_bits(w)).collect())
-            };
-            (c.name, plane)
-        })
-        .collect();
+    let mut channels = Vec::with_capacity(raster.channels.len());
+    for (c, channel) in raster.channels.into_iter().enumerate() {
+        let data = words
+            .as_ref()
+            .ok_or_else(|| anyhow!("the image reader returned no pixels"))?
+            .channel(c)?;
+        anyhow::ensure!(
+            data.len() == n,
+            "the image reader returned {} words for channel {} of {n} pixels",
+            data.len(),
+            channel.name
+        );
+        let plane = if channel.sample == ffi::Sample::U32 {
+            Plane::U32(data.to_vec())
+        } else {
+            Plane::F32(data.par_iter().map(|&w| f32::from_bits(w)).collect())
+        };
+        // Each channel is let go as soon as it is copied, so that a read
+        // never holds a whole image twice.
+        if let Some(words) = words.as_mut() {
+            words.release(c);
+        }
+        channels.push((channel.name, plane));
+    }
     let attributes = raster
         .attributes
         .into_iter()

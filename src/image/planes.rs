@@ -172,6 +172,18 @@ impl Planes {
         })
     }
 
+    /// Drops every channel [`Planes::into_range`] does not read (the light
+    /// layers), so that a reader that has taken what it wants of them does
+    /// not hold them beside the range image being made.
+    pub fn keep_range_channels(&mut self) {
+        self.channels.retain(|(name, _)| {
+            let n = name.as_str();
+            RADIANCE.contains(&n)
+                || NORMAL.contains(&n)
+                || [DISTANCE, OBJECT_ID, PRIMITIVE_ID].contains(&n)
+        });
+    }
+
     /// Adds an RGB layer as channels `<name>.R`, `<name>.G`, `<name>.B`.
     pub fn push_rgb(&mut self, name: &str, values: &[Vec3]) -> Result<()> {
         let n = self.width as usize * self.height as usize;

@@ -1,7 +1,9 @@
 //! A base image as synthesis holds it: what does not change from frame to
 //! frame computed once (each pixel's world point, bounds of tiles of them),
-//! radiance in half floats. 32 bytes per pixel ([`BYTES_PER_PIXEL`]): a
-//! 2,544² sphere base takes 207 MB, eight of them 1.66 GB.
+//! radiance in half floats. 26 bytes per pixel ([`BYTES_PER_PIXEL`]): a
+//! 2,544² sphere base takes 168 MB, eight of them 1.35 GB. The bake's
+//! light layers stay in its files: re-shading evaluates direct light anew
+//! and reads only the radiance.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -11,7 +13,7 @@ use glam::Vec3;
 use half::f16;
 use rayon::prelude::*;
 
-use crate::bake::{Bake, DIFFUSE_DIRECT};
+use crate::bake::Bake;
 use crate::camera::Camera;
 use crate::image::{RangeImage, NO_HIT};
 use crate::scene::Scene;
@@ -24,9 +26,9 @@ pub const TILE: u32 = 16;
 /// tenth of a frame.
 const BLOCK: u32 = 8;
 
-/// Point, object id, primitive id (4 bytes each, the point 12), radiance
-/// and diffuse direct light (3 half floats each).
-pub const BYTES_PER_PIXEL: usize = 12 + 4 + 4 + 6 + 6;
+/// Point, object id, primitive id (4 bytes each, the point 12) and
+/// radiance (3 half floats).
+pub const BYTES_PER_PIXEL: usize = 12 + 4 + 4 + 6;
 
 /// Axis-aligned bounds.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -112,8 +114,6 @@ pub struct Base {
     pub primitive: Vec<u32>,
     /// Radiance divided by `scale`.
     pub radiance: Vec<[f16; 3]>,
-    /// The diffuse-lobe direct light in the radiance, divided by `scale`.
-    pub diffuse_direct: Vec<[f16; 3]>,
     /// A power of two that brings the brightest radiance within half-float
     /// range, whatever the scene's intensities.
     pub scale: f32,
@@ -138,20 +138,9 @@ pub fn from_half(c: &[f16; 3]) -> Vec3 {
 }
 
 impl Base {
-    /// Prepares manifest image `image` of view `view` from the range image
-    /// and its diffuse direct layer.
-    pub fn new(
-        scene: &Scene,
-        image: usize,
-        view: usize,
-        img: RangeImage,
-        diffuse_direct: &[Vec3],
-    ) -> Result<Base> {
+    /// Prepares manifest image `image` of view `view` from the range image.
+    pub fn new(scene: &Scene, image: usize, view: usize, img: RangeImage) -> Result<Base> {
         let n = img.len();
-        ensure!(
-            diffuse_direct.len() == n,
-            "base image {image}: layers and image differ in size"
-        );
         let camera = img.meta.camera;
         ensure!(
             camera.width == img.width && camera.height == img.height,
@@ -193,10 +182,6 @@ impl Base {
             })
             .collect();
         let radiance = img.radiance.par_iter().map(|&c| to_half(c, inv)).collect();
-        let diffuse_direct = diffuse_direct
-            .par_iter()
-            .map(|&c| to_half(c, inv))
-            .collect();
         let moving: Vec<bool> = scene
             .objects
             .iter()
@@ -213,7 +198,6 @@ impl Base {
             object: img.object_id,
             primitive: img.primitive_id,
             radiance,
-            diffuse_direct,
             scale,
             tiles,
             blocks,
@@ -249,11 +233,6 @@ impl Base {
     #[inline]
     pub fn radiance_at(&self, k: usize) -> Vec3 {
         from_half(&self.radiance[k]) * self.scale
-    }
-
-    #[inline]
-    pub fn diffuse_direct_at(&self, k: usize) -> Vec3 {
-        from_half(&self.diffuse_direct[k]) * self.scale
     }
 }
 
@@ -389,8 +368,8 @@ impl BaseCache {
             .get(k)
             .map(|e| e.view)
             .unwrap_or_default();
-        let (image, layers) = bake.read_layers(k, &[DIFFUSE_DIRECT])?;
-        let base = Arc::new(Base::new(scene, k, view, image, &layers[0])?);
+        let (image, _) = bake.read_layers(k, &[])?;
+        let base = Arc::new(Base::new(scene, k, view, image)?);
         self.load_seconds += start.elapsed().as_secs_f64();
         self.loads += 1;
         while !self.held.is_empty() && self.bytes() + base.bytes() > self.budget {

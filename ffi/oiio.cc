@@ -134,17 +134,17 @@ void write_rgb8(rust::Str path_str, uint32_t width, uint32_t height,
 }
 
 rust::Slice<const uint32_t> Words::channel(size_t c) const {
-    if (c >= channels.size())
+    if (c >= channels.size() || !channels[c])
         throw std::out_of_range("no channel " + std::to_string(c));
-    return {channels[c].data(), channels[c].size()};
+    return {channels[c].get(), pixels};
 }
 
 void Words::release(size_t c) {
     if (c < channels.size())
-        std::vector<uint32_t>().swap(channels[c]);
+        channels[c].reset();
 }
 
-Decoded read_image(rust::Str path_str) {
+Decoded read_image(rust::Str path_str, uint64_t max_pixels) {
     std::string path(path_str);
     auto in = OIIO::ImageInput::open(path);
     if (!in)
@@ -156,12 +156,21 @@ Decoded read_image(rust::Str path_str) {
         fail(path, "image has no pixels", "");
 
     size_t width = size_t(spec.width), n = width * spec.height;
+    // A header of a few bytes can declare any size: refuse what no image
+    // here may hold before allocating for it.
+    if (uint64_t(spec.width) * uint64_t(spec.height) > max_pixels)
+        fail(path,
+             "image of " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
+                 " pixels, more than the " + std::to_string(max_pixels) +
+                 " an image may hold here",
+             "");
     size_t stride = spec.pixel_bytes(true);
     Decoded d;
     d.raster.width = uint32_t(spec.width);
     d.raster.height = uint32_t(spec.height);
     d.raster.integer_samples = !spec.format.is_floating_point();
     d.words = std::make_unique<Words>();
+    d.words->pixels = n;
     std::vector<OIIO::TypeDesc> formats, targets;
     std::vector<size_t> offsets;
     size_t offset = 0;
@@ -175,7 +184,9 @@ Decoded read_image(rust::Str path_str) {
         targets.push_back(format == OIIO::TypeUInt32 ? OIIO::TypeUInt32 : OIIO::TypeFloat);
         offsets.push_back(offset);
         offset += format.size();
-        d.words->channels.emplace_back(n);
+        // Not zeroed: pages are touched only as strips arrive, so a file
+        // cut short costs no more memory than what it held.
+        d.words->channels.emplace_back(new uint32_t[n]);
     }
     // A strip of rows at a time in the file's own layout, split into one
     // vector per channel: the whole interleaved image would double what
@@ -184,18 +195,19 @@ Decoded read_image(rust::Str path_str) {
     // read whole.
     const bool tiled = spec.tile_width != 0;
     const int strip = tiled ? spec.height : 64;
-    std::vector<unsigned char> native(size_t(strip) * width * stride);
+    std::unique_ptr<unsigned char[]> buffer(new unsigned char[size_t(strip) * width * stride]);
+    unsigned char *native = buffer.get();
     for (int y0 = spec.y; y0 < spec.y + spec.height; y0 += strip) {
         int y1 = std::min(y0 + strip, spec.y + spec.height);
         size_t rows = size_t(y1 - y0), first = size_t(y0 - spec.y) * width;
-        bool ok = tiled ? in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeUnknown, native.data())
+        bool ok = tiled ? in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeUnknown, native)
                         : in->read_scanlines(0, 0, y0, y1, 0, 0, spec.nchannels,
-                                             OIIO::TypeUnknown, native.data());
+                                             OIIO::TypeUnknown, native);
         if (!ok)
             fail(path, "cannot read pixels", in->geterror());
         for (int c = 0; c < spec.nchannels; ++c) {
-            uint32_t *out = d.words->channels[c].data() + first;
-            const unsigned char *px = native.data() + offsets[c];
+            uint32_t *out = d.words->channels[c].get() + first;
+            const unsigned char *px = native + offsets[c];
             if (formats[c] == targets[c]) {
                 // Words stored as they are wanted: a plain strided copy
                 // (convert_image would call memcpy once per pixel).

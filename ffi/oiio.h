@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <exception>
+#include <memory>
 #include <vector>
 
 // cxx's own handler catches std::exception only; anything else thrown
@@ -37,7 +38,8 @@ struct Decoded;
 // The channels of a file read, one vector each, so that the reader can
 // free each one once it has taken it.
 struct Words {
-    std::vector<std::vector<uint32_t>> channels;
+    std::vector<std::unique_ptr<uint32_t[]>> channels;
+    size_t pixels = 0;
     rust::Slice<const uint32_t> channel(size_t c) const;
     void release(size_t c);
 };
@@ -50,11 +52,12 @@ void write_image(rust::Str path, rust::Str format, const Raster &image);
 void write_rgb8(rust::Str path, uint32_t width, uint32_t height,
                 rust::Slice<const uint8_t> rgb);
 
-// Reads the first subimage of `path`: 32-bit unsigned channels verbatim,
+// Reads the first subimage of `path`, refused when it has more than
+// `max_pixels` pixels: 32-bit unsigned channels verbatim,
 // every other channel converted to float (integer formats normalized to
 // [0, 1]), plus the float and string attributes of its header. The
 // channels' words are in `Decoded::words`, in the raster's channel order.
-Decoded read_image(rust::Str path);
+Decoded read_image(rust::Str path, uint64_t max_pixels);
 
 }  // namespace oiio
 }  // namespace rangewalk

@@ -426,3 +426,19 @@ fn openimageio_and_pure_rgbe_agree_on_each_others_files() {
     let b = rgbe::read(&by_rust).unwrap().texels;
     assert_eq!(a, b);
 }
+
+/// A texture whose header declares more pixels than an image may hold
+/// here is refused by name, whichever back end reads it, before anything
+/// is allocated for it (a fuzzed file of a few bytes once took 24 GB).
+#[test]
+fn textures_declaring_huge_sizes_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("huge.hdr");
+    let mut file = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 10000 +X 10000\n".to_vec();
+    file.extend([1, 1, 1, 128]);
+    std::fs::write(&path, file).unwrap();
+    let err = read_texture(&path).unwrap_err();
+    let message = format!("{err:#}");
+    assert_message_names(err, &path);
+    assert!(message.contains("than the 67108864"), "{message}");
+}

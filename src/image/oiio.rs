@@ -7,7 +7,7 @@ use anyhow::{anyhow, Result};
 use rayon::prelude::*;
 
 use super::planes::{Attr, Plane, Planes};
-use super::Texture;
+use super::{Texture, MAX_PIXELS};
 
 #[cxx::bridge(namespace = "rangewalk::oiio")]
 mod ffi {
@@ -57,7 +57,7 @@ mod ffi {
 
         fn write_image(path: &str, format: &str, image: &Raster) -> Result<()>;
         fn write_rgb8(path: &str, width: u32, height: u32, rgb: &[u8]) -> Result<()>;
-        fn read_image(path: &str) -> Result<Decoded>;
+        fn read_image(path: &str, max_pixels: u64) -> Result<Decoded>;
 
         /// One vector of words per channel of a file read.
         type Words;
@@ -133,13 +133,13 @@ pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()
 
 /// Reads the first subimage of any file OpenImageIO understands.
 pub fn read(path: &Path) -> Result<Planes> {
-    planes(ffi::read_image(path_str(path)?)?)
+    planes(ffi::read_image(path_str(path)?, MAX_PIXELS)?)
 }
 
 /// Reads any image OpenImageIO understands as a linear-RGB texture. Integer
 /// samples are decoded from sRGB unless the file declares them linear.
 pub fn read_texture(path: &Path) -> Result<Texture> {
-    let decoded = ffi::read_image(path_str(path)?)?;
+    let decoded = ffi::read_image(path_str(path)?, MAX_PIXELS)?;
     let linear = decoded
         .raster
         .attributes

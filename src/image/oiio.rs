@@ -151,13 +151,13 @@ pub fn read_texture(path: &Path) -> Result<Texture> {
 
 fn planes(decoded: ffi::Decoded) -> Result<Planes> {
     let ffi::Decoded { raster, mut words } = decoded;
+    let Some(mut words) = words.as_mut() else {
+        anyhow::bail!("the image reader returned no pixels");
+    };
     let n = raster.width as usize * raster.height as usize;
     let mut channels = Vec::with_capacity(raster.channels.len());
     for (c, channel) in raster.channels.into_iter().enumerate() {
-        let data = words
-            .as_ref()
-            .ok_or_else(|| anyhow!("the image reader returned no pixels"))?
-            .channel(c)?;
+        let data = words.channel(c)?;
         anyhow::ensure!(
             data.len() == n,
             "the image reader returned {} words for channel {} of {n} pixels",
@@ -171,9 +171,7 @@ fn planes(decoded: ffi::Decoded) -> Result<Planes> {
         };
         // Each channel is let go as soon as it is copied, so that a read
         // never holds a whole image twice.
-        if let Some(words) = words.as_mut() {
-            words.release(c);
-        }
+        words.as_mut().release(c);
         channels.push((channel.name, plane));
     }
     let attributes = raster

@@ -354,3 +354,37 @@ fn export_writes_a_mitsuba_scene() {
         "{xml}"
     );
 }
+
+/// Subpixels outside what synthesis takes are refused by every experiment
+/// before it bakes or writes anything.
+#[test]
+fn experiments_refuse_subpixels_out_of_range_before_any_work() {
+    let cb = scene("cornell-box");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let out = out.to_str().unwrap();
+    for kind in ["views", "motion"] {
+        for bad in ["0", "5"] {
+            let start = std::time::Instant::now();
+            fails_with(
+                &[
+                    "experiment",
+                    kind,
+                    &cb,
+                    "--supersample",
+                    bad,
+                    "--no-flip",
+                    "--out",
+                    out,
+                ],
+                &format!("--supersample {bad} must lie in 1..=4"),
+            );
+            assert!(
+                start.elapsed().as_secs_f64() < 10.0,
+                "{kind} {bad}: slow to fail"
+            );
+        }
+    }
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().flatten().collect();
+    assert!(left.is_empty(), "{left:?}");
+}

@@ -19,6 +19,7 @@ fn args(out: PathBuf) -> MotionArgs {
             reference_spp: 64,
             base_spp: 2,
             base_size: Some(64),
+            supersample: 2,
             backend: Backend::default_available(),
             no_flip: true,
         },

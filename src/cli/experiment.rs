@@ -185,6 +185,11 @@ pub struct Common {
     /// coarser than a frame pixel at the scene's narrowest field of view].
     #[arg(long)]
     pub base_size: Option<u32>,
+    /// Subpixels per side each frame pixel is synthesized from (1-4). They
+    /// resolve silhouettes down to about a base pixel: with subpixels much
+    /// finer than the bases' pixels they add cost, not accuracy.
+    #[arg(long, default_value_t = rangewalk::synth::Options::default().supersample)]
+    pub supersample: u32,
     #[arg(long, value_parser = choice::<Backend>(), default_value_t = Backend::default_available())]
     pub backend: Backend,
     /// Leave out the FLIP column (when the Python environment of `make deps`
@@ -203,6 +208,7 @@ impl From<Common> for synthesis::CommonArgs {
             reference_spp: a.reference_spp,
             base_spp: a.base_spp,
             base_size: a.base_size,
+            supersample: a.supersample,
             backend: a.backend,
             no_flip: a.no_flip,
         }

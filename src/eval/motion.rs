@@ -111,6 +111,7 @@ pub fn run(args: &MotionArgs) -> Result<MotionResults> {
         options: Options {
             fill: args.sequence.fill,
             bases: 1,
+            supersample: args.common.supersample,
             ..Options::default()
         },
     };

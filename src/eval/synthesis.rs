@@ -58,6 +58,8 @@ pub struct CommonArgs {
     /// Side of the square full-sphere base images [default: no base pixel
     /// coarser than a frame pixel at the scene's narrowest field of view].
     pub base_size: Option<u32>,
+    /// Subpixels per side of every synthesized frame pixel.
+    pub supersample: u32,
     pub backend: Backend,
     /// Leave out the FLIP column (when the Python environment of `make deps`
     /// is not installed).
@@ -118,6 +120,12 @@ impl CommonArgs {
             .collect::<Result<Vec<_>>>()?;
         ensure!(self.base_spp > 0, "--base-spp must be at least 1");
         ensure!(self.reference_spp > 0, "--reference-spp must be at least 1");
+        ensure!(
+            (1..=synth::MAX_SUPERSAMPLE).contains(&self.supersample),
+            "--supersample {} must lie in 1..={}",
+            self.supersample,
+            synth::MAX_SUPERSAMPLE
+        );
         let scene = Scene::load(&self.scene)?;
         let mut notes = Vec::new();
         if scene.dropped_triangles > 0 {
@@ -894,8 +902,9 @@ pub fn differences(args: &CommonArgs, base_size: u32, what: &str) -> String {
     );
     let _ = writeln!(
         md,
-        "- frames {}x{} (the paper's not stated); {what};",
-        args.size.0, args.size.1
+        "- frames {}x{} (the paper's not stated), at {2}x{2} subpixels a pixel where splats fill \
+         (fill foreground and both); {what};",
+        args.size.0, args.size.1, args.supersample
     );
     let _ = writeln!(
         md,

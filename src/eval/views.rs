@@ -256,6 +256,7 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
                         fill,
                         time_interp: TimeInterp::Linear,
                         bases: 2,
+                        supersample: c.supersample,
                         ..Options::default()
                     };
                     let mut r = synthesis::synthesize(

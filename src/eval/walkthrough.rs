@@ -153,6 +153,7 @@ pub fn run(args: &WalkthroughArgs) -> Result<WalkResults> {
         options: Options {
             fill: args.sequence.fill,
             bases: args.bases,
+            supersample: args.common.supersample,
             ..Options::default()
         },
     };
@@ -240,13 +241,25 @@ pub struct Amortized {
     pub path_spp: f64,
     pub reach: Reach,
     pub path_frame_s: f64,
-    /// Synthesis and loading per frame.
+    /// Synthesis per frame, reading the bases excluded.
     pub synth_frame_s: f64,
     /// The whole bake: planning, radiosity, every planned image.
     pub bake_s: f64,
+    /// Reading every planned image once (see [`reading_s`]).
+    pub read_s: f64,
     pub break_even: Option<u64>,
     /// Path tracing over the framework for `n` frames.
     pub speedup: f64,
+}
+
+/// What reading the bases costs a walk of any length: the run's reading,
+/// scaled to every image of the plan. A walk reads each base it uses once
+/// while the memory budget holds them, and frames along one path use the
+/// same bases in the same order however many there are, so reading is a
+/// cost of the walk, as the bake is, not of each frame.
+pub fn reading_s(q: &SequenceQuality, m: &ModeRun) -> f64 {
+    let unread = q.planned_images() as f64 / q.baked_images.max(1) as f64;
+    m.load_s() * unread.max(1.0)
 }
 
 /// The framework's cost against the path tracer's for `m`, amortized over
@@ -259,15 +272,18 @@ pub fn amortized(
 ) -> Option<Amortized> {
     let (path_frame_s, path_spp, reach) = equal_error_seconds(curve, m.mean_lrms())?;
     let bake_s = q.full_bake_s()?;
-    let synth_frame_s = m.per_frame_s();
+    let read_s = reading_s(q, m);
+    let synth_frame_s = m.synth_s() / m.frames.len().max(1) as f64;
+    let fixed_s = bake_s + read_s;
     Some(Amortized {
         path_spp,
         reach,
         path_frame_s,
         synth_frame_s,
         bake_s,
-        break_even: break_even(bake_s, synth_frame_s, path_frame_s),
-        speedup: speedup(n, bake_s, synth_frame_s, path_frame_s),
+        read_s,
+        break_even: break_even(fixed_s, synth_frame_s, path_frame_s),
+        speedup: speedup(n, fixed_s, synth_frame_s, path_frame_s),
     })
 }
 
@@ -433,9 +449,11 @@ fn markdown(r: &WalkResults) -> Result<String> {
          the path tracer's LRMS on frame {f} (t = {} s) equals the mode's mean LRMS, read off its \
          convergence curve (below) on log-log axes, times its measured cost per sample ({} s per spp \
          per frame); \"≤ 1\": one sample is already better; \"extrapolated\": below the curve's last \
-         point, extended as 1/√spp. Break-even: the fewest frames for which the whole bake plus \
-         synthesis costs no more than path tracing every frame to the same error; speed-up: path \
-         tracing over the framework for {m_frames} frames, bake included. The paper's times are for \
+         point, extended as 1/√spp. Break-even: the fewest frames for which the whole bake, reading \
+         the bases and synthesis cost no more than path tracing every frame to the same error; \
+         speed-up: path tracing over the framework for {m_frames} frames, bake included. Reading \
+         counts once for the walk (scaled to every planned image), not per frame: a walk reads each \
+         base it uses once while they fit in memory, however many frames it has. The paper's times are for \
          its {PAPER_FRAMES} frames, after bakes of 1,213.53 / 2,894.22 / 7,746.76 min.",
         r.times[f],
         seconds_per_sample(&r.convergence).map_or("—".into(), |s| sig(s, 3)),
@@ -516,8 +534,8 @@ fn qualities_csv(r: &WalkResults) -> Result<Table> {
 }
 
 /// Mean LRMS against seconds per frame: the path tracer's convergence
-/// curve, and each quality and mode with its whole bake amortized over the
-/// walk's frames and over `--amortize-frames`.
+/// curve, and each quality and mode with its whole bake and reading
+/// amortized over the walk's frames and over `--amortize-frames`.
 fn error_vs_time_plot(dir: &Path, r: &WalkResults) -> Result<()> {
     let mut series = vec![convergence_series(&r.convergence)];
     let n = r.times.len() as u64;
@@ -530,7 +548,9 @@ fn error_vs_time_plot(dir: &Path, r: &WalkResults) -> Result<()> {
                     .iter()
                     .filter_map(|q| {
                         let m = q.modes.iter().find(|m| m.mode == mode)?;
-                        let per_frame = q.full_bake_s()? / frames as f64 + m.per_frame_s();
+                        let fixed = q.full_bake_s()? + reading_s(q, m);
+                        let per_frame =
+                            fixed / frames as f64 + m.synth_s() / m.frames.len().max(1) as f64;
                         Some((per_frame, m.mean_lrms()))
                     })
                     .collect(),
@@ -541,7 +561,7 @@ fn error_vs_time_plot(dir: &Path, r: &WalkResults) -> Result<()> {
         dir.join("error_vs_time.png"),
         &Plot {
             title: "Walk-through: error against time per frame",
-            x_label: "seconds per frame (whole bake amortized)",
+            x_label: "seconds per frame (whole bake and reading amortized)",
             y_label: "mean LRMS",
             scale: Scale::LogLog,
             series: &series,
@@ -622,6 +642,7 @@ mod tests {
                     reference_spp: 256,
                     base_spp: 4,
                     base_size: Some(16),
+                    supersample: 2,
                     backend: Backend::Bvh,
                     no_flip: true,
                 },
@@ -664,12 +685,13 @@ mod tests {
         let q = &r.qualities[0];
         assert_eq!(q.full_bake_s(), Some(52.0));
         // LRMS 0.25 is the path tracer's at 16 spp: 1.6 s a frame against
-        // 1 s, so 52 / 0.6 = 86.7: 87 frames; over 300 frames
-        // 480 s / (52 + 300) s.
+        // 0.5 s of synthesis, after 52 s of bake and 1 s of reading, so
+        // 53 / 1.1 = 48.2: 49 frames; over 300 frames 480 s / (53 + 150) s.
         let a = amortized(q, &q.modes[0], &r.convergence, 300).unwrap();
         assert!((a.path_spp - 16.0).abs() < 1e-9, "{a:?}");
         assert!((a.path_frame_s - 1.6).abs() < 1e-9, "{a:?}");
-        assert_eq!(a.break_even, Some(87));
+        assert!((a.read_s - 1.0).abs() < 1e-9, "{a:?}");
+        assert_eq!(a.break_even, Some(49));
         let md = markdown(&r).unwrap();
         let row = md
             .lines()
@@ -677,7 +699,11 @@ mod tests {
             .unwrap_or_else(|| panic!("no row for q = 0.3 in\n{md}"));
         let cells: Vec<&str> = row.split(" | ").collect();
         assert_eq!(cells.len(), 14, "{row}");
-        assert!(row.contains("| 16.0 | 3.20 | 87 | 1.36x | 90.0 |"), "{row}");
+        assert!(row.contains("| 16.0 | 3.20 | 49 | 2.36x | 90.0 |"), "{row}");
+        // Half of the plan baked: its reading counts for all of it.
+        let mut half = q.clone();
+        half.baked_images = 2;
+        assert!((reading_s(&half, &half.modes[0]) - 2.0).abs() < 1e-9);
         // The phases: 2 + 10 + 40 s, the paper's 1,213.53 minutes beside.
         assert!(
             md.contains("| 0.3 | 2 | 4 | 4 | 2.00 | 10.0 | 40.0 | 10.0 | 52.0 | 52.0 | 1213.53 |"),

@@ -153,7 +153,7 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
         )?;
     }
     println!(
-        "{}: {}x{} at t = {} s from {} base image(s) ({}): {:.1} ms synthesis + {:.3} s reading bases; {} hole pixel(s), {} filled, {} pixel(s) at lights traced{}",
+        "{}: {}x{} at t = {} s from {} base image(s) ({}): {:.1} ms synthesis + {:.3} s reading bases; {} hole pixel(s), {} filled, {} open to the sky, {} pixel(s) at lights traced{}",
         args.out.display(),
         frame.width,
         frame.height,
@@ -169,6 +169,7 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
         stats.load_seconds,
         stats.holes,
         stats.filled,
+        stats.sky,
         stats.light_pixels,
         if options.time_interp == TimeInterp::Reshade {
             format!(", {} mirror pixel(s) no base showed", stats.mirror_misses)

@@ -118,6 +118,14 @@ pub fn render(
     Ok((image, stats))
 }
 
+/// The radiance a ray that leaves the scene at `t` along a unit direction
+/// carries, as the renderers see it: the sun's disk where the ray points
+/// into it, else nothing (a scene has no other sky).
+pub fn sky(scene: &Scene, t: f32) -> impl Fn(Vec3) -> Vec3 + Sync {
+    let lights = Lights::new(scene, t);
+    move |dir| lights.sun_along(dir).map_or(Vec3::ZERO, |(le, _)| le)
+}
+
 /// Estimates one radiance sample along a camera ray, given the sample's
 /// index within its pixel (for stratification); the last argument counts
 /// the rays traced. Returns the whole radiance, the part of it that is

@@ -141,6 +141,9 @@ pub struct FrameStats {
     pub holes: usize,
     /// Pixels filled by background fill.
     pub filled: usize,
+    /// Holes a ray found open to the sky, given its radiance (with
+    /// background fill).
+    pub sky: usize,
     /// Mirror pixels whose reflection no base showed (kept as projected).
     pub mirror_misses: usize,
     /// Pixels at or beside lights traced again.
@@ -343,6 +346,7 @@ impl<'a> Synthesizer<'a> {
         let per_pixel = |n: usize| n.div_ceil((k * k) as usize);
         stats.holes = holes;
         stats.filled = per_pixel(stats.filled);
+        stats.sky = per_pixel(stats.sky);
         stats.mirror_misses = per_pixel(stats.mirror_misses);
         stats.seconds += start.elapsed().as_secs_f64();
         Ok((image, stats))
@@ -461,6 +465,10 @@ impl<'a> Synthesizer<'a> {
             let (lo, hi) = (passes(false), passes(true));
             warp::warp(&target, &lo, &settings, &mut first);
             warp::warp(&target, &hi, &settings, &mut second);
+            if background {
+                stats.sky += self.open_to_sky(camera, t, &mut first)?;
+                stats.sky += self.open_to_sky(camera, t, &mut second)?;
+            }
             finish(&mut first, &mut stats);
             finish(&mut second, &mut stats);
             first
@@ -503,6 +511,9 @@ impl<'a> Synthesizer<'a> {
                 })
                 .collect();
             warp::warp(&target, &passes, &settings, &mut first);
+            if background {
+                stats.sky += self.open_to_sky(camera, t, &mut first)?;
+            }
             finish(&mut first, &mut stats);
             first
         };
@@ -551,6 +562,18 @@ impl<'a> Synthesizer<'a> {
         stats.load_seconds = self.cache.load_seconds - load_before;
         stats.seconds = start.elapsed().as_secs_f64();
         Ok((Some(image), stats))
+    }
+
+    /// Gives the holes of `buffer` (a frame of `camera`) that are open to
+    /// the sky its radiance ([`fill::sky`]), building the ray engine only
+    /// where a hole needs it; returns how many.
+    fn open_to_sky(&mut self, camera: &Camera, t: f32, buffer: &mut [Accum]) -> Result<usize> {
+        if !buffer.par_iter().any(Accum::is_empty) {
+            return Ok(0);
+        }
+        let sky = crate::render::sky(self.scene, t);
+        let engine = &*self.engine_at(t)?;
+        Ok(fill::sky(engine, &sky, camera, buffer))
     }
 
     /// The scene's ray engine (built on first use) posed at `t`.

@@ -580,6 +580,11 @@ impl ModeRun {
         mean(self.frames.iter().map(SynthFrame::seconds))
     }
 
+    /// Mean synthesis time of a frame, loading excluded.
+    pub fn synth_per_frame_s(&self) -> f64 {
+        mean(self.frames.iter().map(|f| f.synth_s))
+    }
+
     pub fn mean_lrms(&self) -> f64 {
         mean(self.frames.iter().map(|f| f.error.lrms))
     }

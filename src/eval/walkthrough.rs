@@ -273,7 +273,7 @@ pub fn amortized(
     let (path_frame_s, path_spp, reach) = equal_error_seconds(curve, m.mean_lrms())?;
     let bake_s = q.full_bake_s()?;
     let read_s = reading_s(q, m);
-    let synth_frame_s = m.synth_s() / m.frames.len().max(1) as f64;
+    let synth_frame_s = m.synth_per_frame_s();
     let fixed_s = bake_s + read_s;
     Some(Amortized {
         path_spp,
@@ -453,8 +453,8 @@ fn markdown(r: &WalkResults) -> Result<String> {
          the bases and synthesis cost no more than path tracing every frame to the same error; \
          speed-up: path tracing over the framework for {m_frames} frames, bake included. Reading \
          counts once for the walk (scaled to every planned image), not per frame: a walk reads each \
-         base it uses once while they fit in memory, however many frames it has. The paper's times are for \
-         its {PAPER_FRAMES} frames, after bakes of 1,213.53 / 2,894.22 / 7,746.76 min.",
+         base it uses once while they fit in memory, however many frames it has. The paper's times \
+         are for its {PAPER_FRAMES} frames, after bakes of 1,213.53 / 2,894.22 / 7,746.76 min.",
         r.times[f],
         seconds_per_sample(&r.convergence).map_or("—".into(), |s| sig(s, 3)),
     );
@@ -549,8 +549,7 @@ fn error_vs_time_plot(dir: &Path, r: &WalkResults) -> Result<()> {
                     .filter_map(|q| {
                         let m = q.modes.iter().find(|m| m.mode == mode)?;
                         let fixed = q.full_bake_s()? + reading_s(q, m);
-                        let per_frame =
-                            fixed / frames as f64 + m.synth_s() / m.frames.len().max(1) as f64;
+                        let per_frame = fixed / frames as f64 + m.synth_per_frame_s();
                         Some((per_frame, m.mean_lrms()))
                     })
                     .collect(),

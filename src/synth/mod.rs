@@ -466,8 +466,7 @@ impl<'a> Synthesizer<'a> {
             warp::warp(&target, &lo, &settings, &mut first);
             warp::warp(&target, &hi, &settings, &mut second);
             if background {
-                stats.sky += self.open_to_sky(camera, t, &mut first)?;
-                stats.sky += self.open_to_sky(camera, t, &mut second)?;
+                stats.sky += self.open_to_sky(camera, t, &mut [&mut first, &mut second])?;
             }
             finish(&mut first, &mut stats);
             finish(&mut second, &mut stats);
@@ -512,7 +511,7 @@ impl<'a> Synthesizer<'a> {
                 .collect();
             warp::warp(&target, &passes, &settings, &mut first);
             if background {
-                stats.sky += self.open_to_sky(camera, t, &mut first)?;
+                stats.sky += self.open_to_sky(camera, t, &mut [&mut first])?;
             }
             finish(&mut first, &mut stats);
             first
@@ -564,16 +563,24 @@ impl<'a> Synthesizer<'a> {
         Ok((Some(image), stats))
     }
 
-    /// Gives the holes of `buffer` (a frame of `camera`) that are open to
+    /// Gives the holes of `buffers` (frames of `camera`) that are open to
     /// the sky its radiance ([`fill::sky`]), building the ray engine only
     /// where a hole needs it; returns how many.
-    fn open_to_sky(&mut self, camera: &Camera, t: f32, buffer: &mut [Accum]) -> Result<usize> {
-        if !buffer.par_iter().any(Accum::is_empty) {
+    fn open_to_sky(
+        &mut self,
+        camera: &Camera,
+        t: f32,
+        buffers: &mut [&mut Vec<Accum>],
+    ) -> Result<usize> {
+        if !buffers.iter().any(|b| b.par_iter().any(Accum::is_empty)) {
             return Ok(0);
         }
         let sky = crate::render::sky(self.scene, t);
         let engine = &*self.engine_at(t)?;
-        Ok(fill::sky(engine, &sky, camera, buffer))
+        Ok(buffers
+            .iter_mut()
+            .map(|b| fill::sky(engine, &sky, camera, b))
+            .sum())
     }
 
     /// The scene's ray engine (built on first use) posed at `t`.

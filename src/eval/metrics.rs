@@ -81,29 +81,18 @@ pub fn compare(test: &[Vec3], reference: &[Vec3], mask: Option<&[bool]>) -> Resu
 /// samples), so the mean's RMS noise is `RMS(Y_a - Y_b) √(na nb) / (na + nb)`.
 pub fn noise_of_mean(a: &[Vec3], na: u32, b: &[Vec3], nb: u32) -> Result<f64> {
     ensure!(na > 0 && nb > 0, "both halves need samples ({na} and {nb})");
-    ensure!(
-        a.len() == b.len(),
-        "the halves have {} and {} pixels",
-        a.len(),
-        b.len()
-    );
     let (na, nb) = (na as f64, nb as f64);
-    let (mut sum_sq, mut sum_mean) = (0.0f64, 0.0f64);
-    for (i, (&x, &y)) in a.iter().zip(b).enumerate() {
-        ensure!(
-            x.is_finite() && y.is_finite(),
-            "pixel {i} of a half is not finite: {x}, {y}"
-        );
-        let (ya, yb) = (luminance(x), luminance(y));
-        sum_sq += (ya - yb) * (ya - yb);
-        sum_mean += (na * ya + nb * yb) / (na + nb);
-    }
-    ensure!(
-        sum_mean > 0.0,
-        "the halves are black: a relative noise needs a lit image"
-    );
-    let n = a.len() as f64;
-    Ok((sum_sq / n).sqrt() / (sum_mean / n) * (na * nb).sqrt() / (na + nb))
+    let mean: Vec<Vec3> = a
+        .iter()
+        .zip(b)
+        .map(|(&x, &y)| (x * na as f32 + y * nb as f32) / (na + nb) as f32)
+        .collect();
+    // `compare` checks the sizes and finiteness and divides by the mean's
+    // luminance; the halves' RMS difference is its LRMS times that.
+    let difference = compare(a, b, None)?;
+    let against_mean = compare(b, &mean, None)?;
+    let mean_b = against_mean.bias + 1.0;
+    Ok(difference.lrms * mean_b * (na * nb).sqrt() / (na + nb))
 }
 
 #[cfg(test)]

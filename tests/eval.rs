@@ -192,7 +192,6 @@ fn results(out: PathBuf) -> IndirectResults {
                 radiance: vec![Vec3::splat(0.4); 16],
                 seconds: Some(10.0),
                 reused: false,
-                noise: None,
             })
             .collect(),
         qualities: vec![

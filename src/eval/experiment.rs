@@ -213,7 +213,6 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
         &staging.dir().join(REFERENCE_DIR),
     )?;
     notes.extend(reference::reuse_note(&references));
-    notes.extend(reference::noise_note(&references));
     let refs: Vec<&[Vec3]> = references.iter().map(|r| r.radiance.as_slice()).collect();
     let ctx = Frames {
         scene: &scene,

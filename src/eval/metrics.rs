@@ -73,28 +73,6 @@ pub fn compare(test: &[Vec3], reference: &[Vec3], mask: Option<&[bool]>) -> Resu
     })
 }
 
-/// The noise of the mean of two independent renders of one view, `a` from
-/// `na` samples per pixel and `b` from `nb`, as an LRMS against that mean:
-/// the error its own noise adds to every comparison with it. Per pixel
-/// the two differ by noise alone, whose variance is the mean's times
-/// `(na + nb)² / (na nb)` (a render's variance falls as one over its
-/// samples), so the mean's RMS noise is `RMS(Y_a - Y_b) √(na nb) / (na + nb)`.
-pub fn noise_of_mean(a: &[Vec3], na: u32, b: &[Vec3], nb: u32) -> Result<f64> {
-    ensure!(na > 0 && nb > 0, "both halves need samples ({na} and {nb})");
-    let (na, nb) = (na as f64, nb as f64);
-    let mean: Vec<Vec3> = a
-        .iter()
-        .zip(b)
-        .map(|(&x, &y)| (x * na as f32 + y * nb as f32) / (na + nb) as f32)
-        .collect();
-    // `compare` checks the sizes and finiteness and divides by the mean's
-    // luminance; the halves' RMS difference is its LRMS times that.
-    let difference = compare(a, b, None)?;
-    let against_mean = compare(b, &mean, None)?;
-    let mean_b = against_mean.bias + 1.0;
-    Ok(difference.lrms * mean_b * (na * nb).sqrt() / (na + nb))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -110,38 +88,6 @@ mod tests {
         let a = gradient(64);
         let e = compare(&a, &a, None).unwrap();
         assert_eq!((e.lrms, e.bias, e.pixels), (0.0, 0.0, 64));
-    }
-
-    /// Each pixel of each half: a fixed image plus the mean of `n` uniform
-    /// samples of variance `1/12` (grey), so the mean of both halves has
-    /// noise of standard deviation `√(1/(12 (na + nb)))` per pixel.
-    #[test]
-    fn noise_of_mean_finds_the_noise_of_independent_halves() {
-        let mut rng = crate::rng::Pcg32::for_sample(7, 0, 0);
-        let truth: Vec<f32> = (0..20_000).map(|i| 1.0 + (i % 7) as f32 * 0.1).collect();
-        let mut half = |n: u32| -> Vec<Vec3> {
-            truth
-                .iter()
-                .map(|&t| {
-                    let s: f32 = (0..n).map(|_| rng.next_f32() - 0.5).sum();
-                    Vec3::splat(t + s / n as f32)
-                })
-                .collect()
-        };
-        for (na, nb) in [(8, 8), (3, 13)] {
-            let (a, b) = (half(na), half(nb));
-            let mean_y = truth.iter().map(|&t| t as f64).sum::<f64>() / truth.len() as f64;
-            let expected = (1.0 / (12.0 * (na + nb) as f64)).sqrt() / mean_y;
-            let found = noise_of_mean(&a, na, &b, nb).unwrap();
-            // 20,000 pixels: the RMS estimate's relative standard error is
-            // about 1/√(2 · 20,000) = 0.5%; 3% is six of them.
-            assert!(
-                (found / expected - 1.0).abs() < 0.03,
-                "{na}+{nb} samples: {found} against {expected}"
-            );
-        }
-        let grey = vec![Vec3::ONE; 4];
-        assert!(noise_of_mean(&grey, 0, &grey, 4).is_err());
     }
 
     #[test]

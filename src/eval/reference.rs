@@ -9,7 +9,6 @@ use glam::Vec3;
 
 use crate::accel::InstancedEngine;
 use crate::camera::Camera;
-use crate::eval::metrics;
 use crate::image;
 use crate::render::{self, RenderSettings};
 use crate::scene::hash::ContentHash;
@@ -20,11 +19,6 @@ use crate::scene::Scene;
 /// reference's first samples and understate the error).
 pub const REFERENCE_SEED: u64 = 0;
 
-/// Seed of the second half of every reference's samples: the two halves
-/// are independent renders, whose difference measures the reference's
-/// own noise ([`Reference::noise`]).
-pub const REFERENCE_SEED_2: u64 = 0x2ef_5eed_0002;
-
 /// One reference frame.
 #[derive(Clone, Debug)]
 pub struct Reference {
@@ -34,12 +28,6 @@ pub struct Reference {
     pub seconds: Option<f64>,
     /// Whether it came from the cache.
     pub reused: bool,
-    /// LRMS of the reference's own noise, from the difference of two
-    /// independent halves of its samples: a synthesized frame with true
-    /// error `e` measures about `√(e² + noise²)` against it. `None` for
-    /// one sample per pixel (nothing to halve) and for cache entries from
-    /// before it was kept.
-    pub noise: Option<f64>,
 }
 
 /// References of `camera`'s view at each of `times` with `spp` samples per
@@ -67,14 +55,10 @@ pub fn references(
             camera.width, camera.height
         ));
         let seconds_path = path.with_extension("seconds");
-        let noise_path = path.with_extension("noise");
-        let number = |p: &Path| {
-            std::fs::read_to_string(p)
-                .ok()
-                .and_then(|s| s.trim().parse::<f64>().ok())
-        };
         if let Some(radiance) = cached(&path, camera, t) {
-            let (seconds, noise) = (number(&seconds_path), number(&noise_path));
+            let seconds = std::fs::read_to_string(&seconds_path)
+                .ok()
+                .and_then(|s| s.trim().parse().ok());
             eprintln!(
                 "reference {}/{}: t = {t} s, reused {}",
                 i + 1,
@@ -85,7 +69,6 @@ pub fn references(
                 radiance,
                 seconds,
                 reused: true,
-                noise,
             });
             continue;
         }
@@ -96,74 +79,17 @@ pub fn references(
             camera.width,
             camera.height
         );
-        let (img, seconds, noise) = halves(scene, engine, camera, t, spp)?;
-        // The image last: an entry counts as cached only once its EXR is
-        // there, so the numbers beside it are never stale.
-        if let Some(noise) = noise {
-            std::fs::write(&noise_path, format!("{noise}\n"))
-                .with_context(|| format!("writing {}", noise_path.display()))?;
-        }
+        let (img, seconds) = path_trace_image(scene, engine, camera, t, spp, REFERENCE_SEED)?;
+        image::write_exr(&path, &img)?;
         std::fs::write(&seconds_path, format!("{seconds}\n"))
             .with_context(|| format!("writing {}", seconds_path.display()))?;
-        image::write_exr(&path, &img)?;
         out.push(Reference {
             radiance: img.radiance,
             seconds: Some(seconds),
             reused: false,
-            noise,
         });
     }
     Ok(out)
-}
-
-/// A reference of `spp` samples as the mean of two independent renders of
-/// half of them each, with the time both took and the mean's noise
-/// ([`metrics::noise_of_mean`]); one render where there is one sample.
-fn halves(
-    scene: &Scene,
-    engine: &mut dyn InstancedEngine,
-    camera: &Camera,
-    t: f32,
-    spp: u32,
-) -> Result<(image::RangeImage, f64, Option<f64>)> {
-    let first = spp.div_ceil(2);
-    let (mut img, seconds) = path_trace_image(scene, engine, camera, t, first, REFERENCE_SEED)?;
-    let second = spp - first;
-    if second == 0 {
-        return Ok((img, seconds, None));
-    }
-    let (other, more) = path_trace_image(scene, engine, camera, t, second, REFERENCE_SEED_2)?;
-    let noise = metrics::noise_of_mean(&img.radiance, first, &other.radiance, second)?;
-    let (wa, wb) = (first as f32 / spp as f32, second as f32 / spp as f32);
-    for (a, b) in img.radiance.iter_mut().zip(&other.radiance) {
-        *a = *a * wa + *b * wb;
-    }
-    Ok((img, seconds + more, Some(noise)))
-}
-
-/// The report's note on the references' own noise: what no method can get
-/// under against them.
-pub fn noise_note(references: &[Reference]) -> Option<String> {
-    let mut noise: Vec<f64> = references.iter().filter_map(|r| r.noise).collect();
-    if noise.is_empty() {
-        return None;
-    }
-    noise.sort_by(f64::total_cmp);
-    let median = noise[noise.len() / 2];
-    let unknown = references.len() - noise.len();
-    Some(format!(
-        "the references' own noise (two independent halves of their samples): LRMS {median:.3} \
-         (median of {}{}; {:.3}–{:.3}); a frame of true error e measures about √(e² + {median:.3}²) \
-         against them",
-        noise.len(),
-        if unknown > 0 {
-            format!(", {unknown} cached without it")
-        } else {
-            String::new()
-        },
-        noise[0],
-        noise[noise.len() - 1],
-    ))
 }
 
 /// The report's note on references read from the cache, if any were.
@@ -290,9 +216,7 @@ mod tests {
             dir.path(),
         )
         .unwrap();
-        assert!(first
-            .iter()
-            .all(|r| !r.reused && r.seconds.is_some() && r.noise.is_some()));
+        assert!(first.iter().all(|r| !r.reused && r.seconds.is_some()));
         // The two ends of the animation differ (the boxes moved).
         assert_ne!(first[0].radiance, first[1].radiance);
         let again = references(
@@ -309,7 +233,6 @@ mod tests {
             assert!(b.reused);
             assert_eq!(a.radiance, b.radiance);
             assert_eq!(a.seconds, b.seconds);
-            assert_eq!(a.noise, b.noise);
         }
         // Another sample count is another entry.
         let other = references(
@@ -324,76 +247,6 @@ mod tests {
         .unwrap();
         assert!(!other[0].reused);
         let files = std::fs::read_dir(dir.path()).unwrap().count();
-        assert_eq!(files, 9, "three EXR files, their times and their noise");
-    }
-
-    /// Relative luminance RMS of `a - b` against `b`'s mean, and the
-    /// standard error of that estimate from the spread of the pixels'
-    /// squared differences (the RMS's relative error is half the mean
-    /// square's).
-    fn lrms_with_error(a: &[Vec3], b: &[Vec3]) -> (f64, f64) {
-        let y = crate::eval::metrics::luminance;
-        let sq: Vec<f64> = a
-            .iter()
-            .zip(b)
-            .map(|(&a, &b)| (y(a) - y(b)).powi(2))
-            .collect();
-        let n = sq.len() as f64;
-        let m = sq.iter().sum::<f64>() / n;
-        let var = sq.iter().map(|s| (s - m).powi(2)).sum::<f64>() / (n - 1.0);
-        let mean_b = b.iter().map(|&c| y(c)).sum::<f64>() / n;
-        let lrms = m.sqrt() / mean_b;
-        (lrms, lrms * 0.5 * (var / n).sqrt() / m)
-    }
-
-    /// The noise a reference reports is the error it shows against a
-    /// far better converged render: with 16 samples against 256 (whose
-    /// own noise is a quarter of it), about √(1 + 1/16) times the noise.
-    #[test]
-    fn reference_noise_is_its_error_against_a_converged_render() {
-        let scene = Scene::load(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/scenes/cornell-box/scene.toml"
-        ))
-        .unwrap();
-        // Looking down at the boxes, the light out of view: the few pixels
-        // on its rim would carry most of the squared error and leave the
-        // estimates no error bars worth the name.
-        let camera = crate::scene::CameraDesc {
-            name: "boxes".into(),
-            position: Vec3::new(278.0, 273.0, -800.0),
-            direction: Vec3::new(0.0, -0.35, 1.0).normalize(),
-            up: Vec3::Y,
-            vfov_deg: 25.0,
-        }
-        .perspective(48, 48)
-        .unwrap();
-        let mut engine = accel::build(Backend::Bvh, &scene.geometry(), &scene.at(0.5)).unwrap();
-        let dir = tempfile::tempdir().unwrap();
-        let reference = references(
-            &scene,
-            engine.as_mut(),
-            &camera,
-            "boxes",
-            &[0.5],
-            16,
-            dir.path(),
-        )
-        .unwrap();
-        let noise = reference[0].noise.unwrap();
-        let (fine, _) = path_trace(&scene, engine.as_mut(), &camera, 0.5, 256, 99).unwrap();
-        let (measured, measured_se) = lrms_with_error(&reference[0].radiance, &fine);
-        // The estimate's own error bar, from the halves it was made of.
-        let (a, _) = path_trace(&scene, engine.as_mut(), &camera, 0.5, 8, REFERENCE_SEED).unwrap();
-        let (b, _) =
-            path_trace(&scene, engine.as_mut(), &camera, 0.5, 8, REFERENCE_SEED_2).unwrap();
-        let (halves, halves_se) = lrms_with_error(&a, &b);
-        let expected = noise * (1.0f64 + 1.0 / 16.0).sqrt();
-        let bar = 4.0 * (measured_se.powi(2) + (expected * halves_se / halves).powi(2)).sqrt();
-        assert!(
-            (measured - expected).abs() < bar,
-            "16-spp reference: noise {noise:.4} predicts {expected:.4} against 256 spp, \
-             measured {measured:.4} (four standard errors: {bar:.4})"
-        );
+        assert_eq!(files, 6, "three EXR files and their times");
     }
 }

@@ -689,7 +689,6 @@ impl Sequence<'_> {
             &out.join(REFERENCE_DIR),
         )?;
         notes.extend(reference::reuse_note(&references));
-        notes.extend(reference::noise_note(&references));
         let masks = self
             .shots
             .iter()

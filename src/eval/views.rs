@@ -306,7 +306,6 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
     }
     let references: Vec<Reference> = runs.iter().map(|r| r.reference.clone()).collect();
     notes.extend(super::reference::reuse_note(&references));
-    notes.extend(super::reference::noise_note(&references));
     if runs
         .iter()
         .any(|r| r.bake.reused || r.resampled_bake.reused)

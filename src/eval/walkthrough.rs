@@ -663,7 +663,6 @@ mod tests {
                     radiance: vec![Vec3::ONE; 4],
                     seconds: Some(25.6),
                     reused: false,
-                    noise: None,
                 })
                 .collect(),
             convergence: [1, 4, 16, 64]

@@ -4,7 +4,8 @@
 //! the pixels hold) into a temporary folder and held in memory, so the
 //! figure is frames per second of synthesis alone, as a walk-through sees
 //! it after its bases are loaded; each without subpixels and at the
-//! default 2 × 2 a pixel.
+//! default 2 × 2 a pixel, and each again with `Filter::Cover` (ids ending
+//! in `-cover`).
 //!
 //! `RANGEWALK_BENCH_BAKES=<dir>` keeps the bakes in `<dir>` and reuses
 //! them on the next run (a 2,544² bake takes minutes on two cores), and
@@ -26,7 +27,7 @@ use rangewalk::bake::{self, BaseProjection, IndirectSource, Settings, Shard};
 use rangewalk::image::RangeImage;
 use rangewalk::plan::{Plan, PlannedView};
 use rangewalk::scene::Scene;
-use rangewalk::synth::{Options, Synthesizer, TimeInterp, DEFAULT_BUDGET};
+use rangewalk::synth::{Filter, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET};
 
 const FRAME: u32 = 512;
 
@@ -91,16 +92,26 @@ fn synth(c: &mut Criterion) {
             (8, 4, 0.5, TimeInterp::Motion),
         ] {
             let camera = walk.at(0.5).perspective(FRAME, FRAME).expect("camera");
-            // Without subpixels and at the default 2 x 2.
-            for supersample in [1, 2] {
+            // Without subpixels and at the default 2 x 2; splats as box
+            // filters (the default) and reaching only covered pixels.
+            for (supersample, filter) in [1, 2]
+                .into_iter()
+                .flat_map(|s| [(s, Filter::Box), (s, Filter::Cover)])
+            {
                 let options = Options {
                     bases: views,
                     time_interp: interp,
                     supersample,
+                    filter,
                     ..Options::default()
                 };
-                let id = format!("{images}-images-{views}-views-{interp:?}-ss{supersample}")
-                    .to_lowercase();
+                let suffix = match filter {
+                    Filter::Box => "",
+                    Filter::Cover => "-cover",
+                };
+                let id =
+                    format!("{images}-images-{views}-views-{interp:?}-ss{supersample}{suffix}")
+                        .to_lowercase();
                 // Criterion calls this only for the benchmarks a filter
                 // selects; the bases are loaded before timing.
                 let mut loaded = false;

@@ -16,7 +16,7 @@ use rangewalk::image::{RangeImage, NO_HIT};
 use rangewalk::plan::{Plan, PlannedView};
 use rangewalk::render::{self, RenderSettings};
 use rangewalk::scene::Scene;
-use rangewalk::synth::{Fill, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET};
+use rangewalk::synth::{Fill, Filter, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET};
 
 fn scene_path(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -109,11 +109,18 @@ fn a_base_reprojected_into_its_own_camera_is_the_base() {
     );
     let base = baked.read(0).unwrap().image;
     let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
-    for fill in [Fill::None, Fill::Both] {
+    // A splat in its own camera is its own pixel, whichever pixels it
+    // reaches.
+    for (fill, filter) in [
+        (Fill::None, Filter::Box),
+        (Fill::Both, Filter::Box),
+        (Fill::Both, Filter::Cover),
+    ] {
         // Reprojection alone: tracing the light replaces the base's own
         // pixels there.
         let opts = Options {
             fill,
+            filter,
             bases: 1,
             light_rays: 0,
             ..Options::default()
@@ -338,6 +345,26 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
     assert!(e.lrms < 0.2, "LRMS {:.4} against a 1024-spp render", e.lrms);
     assert!(all.bias.abs() < 0.03, "bias {:+.4}", all.bias);
     assert!(stats.light_pixels > 0, "the light's rim is traced");
+    // Splats that reach only the pixels whose centres they cover: the
+    // same goals.
+    let cover = Options {
+        filter: Filter::Cover,
+        ..Options::default()
+    };
+    let (covered, covered_stats) = synth.frame(&camera, 0.0, &cover).unwrap();
+    assert_eq!(covered_stats.holes, 0, "cover: fill both leaves no hole");
+    let c = metrics::compare(&covered.radiance, &reference.radiance, Some(&inside)).unwrap();
+    let c_all = metrics::compare(&covered.radiance, &reference.radiance, None).unwrap();
+    eprintln!(
+        "cover: LRMS {:.4} (all pixels {:.4}), bias {:+.4}",
+        c.lrms, c_all.lrms, c_all.bias
+    );
+    assert!(
+        c.lrms < 0.2,
+        "cover: LRMS {:.4} against a 1024-spp render",
+        c.lrms
+    );
+    assert!(c_all.bias.abs() < 0.03, "cover: bias {:+.4}", c_all.bias);
     assert!(
         all.lrms < 0.5 * plain.lrms,
         "whole frame: LRMS {:.4} traced, {:.4} not",

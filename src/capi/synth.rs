@@ -171,6 +171,8 @@ impl rw_synth_options {
             reshade_samples: self.reshade_samples,
             light_rays: self.light_rays,
             seed: self.seed,
+            // The splat filter is not in the C ABI yet: the default.
+            ..Options::default()
         };
         Ok((options, budget))
     }

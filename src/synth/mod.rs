@@ -29,8 +29,8 @@ pub mod walk;
 mod warp;
 
 pub use base::{Base, BaseCache, BYTES_PER_PIXEL};
-pub use warp::Blend;
 use warp::{Accum, Pass, Target, Twin, WarpSettings, SKY_Z};
+pub use warp::{Blend, Filter};
 
 #[derive(
     Clone,
@@ -109,6 +109,8 @@ pub struct Options {
     /// Subpixels resolve that share. Only splatting fills (`foreground`,
     /// `both`) use them.
     pub supersample: u32,
+    /// Which pixels a splat reaches (see [`Filter`]).
+    pub filter: Filter,
 }
 
 impl Default for Options {
@@ -124,6 +126,7 @@ impl Default for Options {
             light_rays: 8,
             seed: 1,
             supersample: 2,
+            filter: Filter::Box,
         }
     }
 }
@@ -413,6 +416,7 @@ impl<'a> Synthesizer<'a> {
         let settings = WarpSettings {
             tolerance: opts.tolerance,
             splat: matches!(opts.fill, Fill::Foreground | Fill::Both),
+            filter: opts.filter,
             blend: opts.blend,
             alpha: matches!(opts.time_interp, TimeInterp::Linear | TimeInterp::Reshade),
         };

@@ -61,8 +61,17 @@ struct Hot {
     /// The heaviest sample's weight and base pixel.
     best: f32,
     pixel: u32,
-    /// The heaviest sample's pass.
-    pass: u32,
+    /// The heaviest sample's pass, shifted left by one, and in the lowest
+    /// bit whether a sample's footprint covers the pixel's centre: such a
+    /// sample decides the pixel's surface, and samples whose footprints
+    /// only overlap the pixel's edge join it only within the tolerance.
+    tag: u32,
+}
+
+impl Hot {
+    fn covered(&self) -> bool {
+        self.tag & 1 != 0
+    }
 }
 
 impl Accum {
@@ -163,10 +172,38 @@ pub enum Blend {
     Average,
 }
 
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    strum::Display,
+    strum::EnumString,
+    strum::IntoStaticStr,
+    strum::VariantArray,
+    strum::EnumMessage,
+)]
+#[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
+pub enum Filter {
+    /// A splat joins every pixel it overlaps, weighed by the overlap, and
+    /// decides those whose centres it covers: a box filter of the base's
+    /// pixels.
+    Box,
+    /// A splat reaches only the pixels whose centres it covers: a quarter
+    /// to a third less time a frame, as good where base pixels are no
+    /// larger than the frame's (subpixels included), blockier where they
+    /// are larger.
+    Cover,
+}
+
 #[derive(Clone, Copy, Debug)]
 pub struct WarpSettings {
     pub tolerance: f32,
     pub splat: bool,
+    pub filter: Filter,
     pub blend: Blend,
     /// Whether pixels sum their samples' `alpha` (linear blending and
     /// re-shading read it).
@@ -427,14 +464,16 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
 }
 
 /// The band's pixels from what they gathered: the heaviest sample's point
-/// and ids looked up in its pass.
+/// and ids looked up in its pass. Overlap alone does not make a pixel
+/// seen: where no footprint covers its centre (a disocclusion's edge), it
+/// stays a hole for the fills rather than taking the foreground's edge.
 fn resolve(passes: &[Pass], hot: &[Hot], alpha: &[f32], rows: &mut [Accum]) {
     for (j, (a, h)) in rows.iter_mut().zip(hot).enumerate() {
-        if h.z == 0.0 {
+        if h.z == 0.0 || !h.covered() {
             *a = Accum::default();
             continue;
         }
-        let pass = &passes[h.pass as usize];
+        let pass = &passes[(h.tag >> 1) as usize];
         let base = pass.base;
         let k = h.pixel as usize;
         let (p, object) = (base.points[k], base.object[k]);
@@ -619,17 +658,24 @@ fn splat_tile(
                 (det.abs() >= 1e-6).then(|| {
                     let extent = e1.abs() + e2.abs();
                     let (lo, hi) = (s.px - 0.5 * extent, s.px + 0.5 * extent);
-                    // Only pixels whose centres the bounds hold (and the
-                    // pixel under the sample) can be covered.
-                    let (fx, fy) = (floor(s.px.x), floor(s.px.y));
-                    let rows = (
-                        ceil(lo.y - 0.5).min(fy).max(y0 as i64),
-                        floor(hi.y - 0.5).max(fy).min(y1 as i64 - 1),
-                    );
-                    let cols = (
-                        ceil(lo.x - 0.5).min(fx).max(0),
-                        floor(hi.x - 0.5).max(fx).min(fw as i64 - 1),
-                    );
+                    let (rows, cols) = match settings.filter {
+                        Filter::Box => (
+                            (floor(lo.y).max(y0 as i64), ceil(hi.y).min(y1 as i64) - 1),
+                            (floor(lo.x).max(0), ceil(hi.x).min(fw as i64) - 1),
+                        ),
+                        // Only pixels whose centres the bounds hold (and
+                        // the pixel under the sample) can be covered.
+                        Filter::Cover => (
+                            (
+                                ceil(lo.y - 0.5).min(fy).max(y0 as i64),
+                                floor(hi.y - 0.5).max(fy).min(y1 as i64 - 1),
+                            ),
+                            (
+                                ceil(lo.x - 0.5).min(fx).max(0),
+                                floor(hi.x - 0.5).max(fx).min(fw as i64 - 1),
+                            ),
+                        ),
+                    };
                     (e1, e2, det, extent, rows, cols)
                 })
             } else {
@@ -677,7 +723,7 @@ fn splat_tile(
                 radiance,
                 alpha,
                 pixel: k as u32,
-                pass: index,
+                tag: index << 1,
             };
             // The depth gradient across the frame, so that the z-test
             // compares depths at the pixel centre: a surface seen at a
@@ -694,7 +740,7 @@ fn splat_tile(
                 }
                 _ => Vec2::ZERO,
             };
-            let mut deposit = |px: i64, py: i64, area: f32| {
+            let mut deposit = |px: i64, py: i64, area: f32, covers: bool| {
                 if in_band(px, py) {
                     let j = ((py as u32 - y0) * fw + px as u32) as usize;
                     let a = &mut rows[j];
@@ -704,22 +750,20 @@ fn splat_tile(
                     } else {
                         (s.z + grad.dot(centre - s.px)).clamp(0.5 * s.z, 2.0 * s.z)
                     };
-                    sample.deposit(a, alphas.get_mut(j), z, area, eps, settings.blend);
+                    sample.deposit(a, alphas.get_mut(j), z, area, covers, eps, settings.blend);
                 }
             };
             let Some((e1, e2, det, extent, (ya, yb), (xa, xb))) = footprint else {
-                deposit(fx, fy, 1.0);
+                deposit(fx, fy, 1.0, true);
                 continue;
             };
             let origin = s.px - 0.5 * (e1 + e2);
-            // A frame pixel takes the samples whose footprints cover its
-            // centre (the footprints of one base tile a surface, so one a
-            // base), each weighed by how much of the pixel it overlaps:
-            // that of an axis-aligned box with the footprint's area and
-            // the proportions of its bounds. Samples that only overlap a
-            // pixel are left out: they cost two thirds of the deposits and
-            // subpixels already resolve what they added (see
-            // docs/synthesis.md, "Speed").
+            // Area weights: each frame pixel averages the base pixels over
+            // it by how much of it they cover (a box filter of the base's
+            // pixels, as the reference's pixels integrate the scene), not
+            // by whose centres fall in it, which shifts edges by up to half
+            // a pixel. The overlap is that of an axis-aligned box with the
+            // footprint's area and the proportions of its bounds.
             let half = 0.5 * extent * (det.abs() / (extent.x * extent.y)).sqrt();
             let (bl, bh) = (s.px - half, s.px + half);
             let overlap =
@@ -737,10 +781,14 @@ fn splat_tile(
                     // footprint is smaller than a pixel.
                     let covers =
                         (0.0..1.0).contains(&a) && (0.0..1.0).contains(&b) || (px, py) == (fx, fy);
-                    // A covering footprint's sample counts even where the
-                    // box approximating it misses the pixel.
+                    let area = oy * overlap(px, bl.x, bh.x);
+                    // Slivers below the rounding of positions are no
+                    // overlap; a covering footprint's sample counts even
+                    // where the box approximating it misses the pixel.
                     if covers {
-                        deposit(px, py, (oy * overlap(px, bl.x, bh.x)).max(MIN_AREA));
+                        deposit(px, py, area.max(MIN_AREA), true);
+                    } else if settings.filter == Filter::Box && area > MIN_AREA {
+                        deposit(px, py, area, false);
                     }
                 }
             }
@@ -784,15 +832,21 @@ struct Sample {
     weight: f32,
     radiance: Vec3,
     alpha: f32,
-    /// The base pixel and its pass, as [`Hot`] names them.
+    /// The base pixel and its pass (shifted left by one) as [`Hot`] names
+    /// them.
     pixel: u32,
-    pass: u32,
+    tag: u32,
 }
 
 impl Sample {
     /// Adds the sample, weighted by the share `area` of the pixel its
     /// footprint overlaps (and its `alpha` to the pixel's sum, where one is
-    /// kept).
+    /// kept). A sample whose footprint `covers` the pixel's centre replaces
+    /// what only overlapping samples put there unless it agrees with it in
+    /// depth; one that merely overlaps never displaces a covering one (so
+    /// foreground edges do not spill over the background) and joins it
+    /// only within the tolerance.
+    #[allow(clippy::too_many_arguments)]
     #[inline]
     fn deposit(
         &self,
@@ -800,20 +854,27 @@ impl Sample {
         alpha: Option<&mut f32>,
         z: f32,
         area: f32,
+        covers: bool,
         eps: f32,
         blend: Blend,
     ) {
         let w = self.weight * area;
         let nearer = z < a.z * (1.0 - eps);
         let within = !nearer && z <= a.z * (1.0 + eps);
-        if a.z == 0.0 || nearer {
+        let replace = a.z == 0.0
+            || match (covers, a.covered()) {
+                (true, false) => !within,
+                (false, true) => false,
+                _ => nearer,
+            };
+        if replace {
             *a = Hot {
                 z,
                 w,
                 radiance: self.radiance * w,
                 best: w,
                 pixel: self.pixel,
-                pass: self.pass,
+                tag: self.tag | covers as u32,
             };
             if let Some(alpha) = alpha {
                 *alpha = self.alpha * w;
@@ -825,10 +886,11 @@ impl Sample {
                 *alpha += self.alpha * w;
             }
             a.z = a.z.min(z);
+            a.tag |= covers as u32;
             if w > a.best {
                 a.best = w;
                 a.pixel = self.pixel;
-                a.pass = self.pass;
+                a.tag = self.tag | (a.tag & 1);
             }
         }
     }

@@ -60,8 +60,8 @@ pub struct SynthOptions {
     pub supersample: u32,
     /// Which frame pixels a splat reaches: every one it overlaps, weighed
     /// by the overlap (box), or only those whose centres it covers (cover:
-    /// a quarter to a third faster, as accurate where base pixels are no
-    /// larger than the frame's).
+    /// a quarter to a third faster, LRMS up to a tenth higher from bases
+    /// as fine as the frame, up to a third from coarser ones).
     #[arg(long, value_parser = choice::<Filter>(), default_value_t = Options::default().filter)]
     pub filter: Filter,
     /// Memory for bases held between frames, in MiB.

@@ -1,7 +1,8 @@
 //! Light sampling for next-event estimation: emissive triangles in world
 //! space at one scene time, point lights and the sun, picked in proportion to
-//! an estimate of their power, plus the densities that multiple importance
-//! sampling needs when a BSDF-sampled ray reaches a light by itself.
+//! an estimate of their power (the sun: half of the picks beside other
+//! lights), plus the densities that multiple importance sampling needs when
+//! a BSDF-sampled ray reaches a light by itself.
 
 use std::f32::consts::PI;
 
@@ -150,6 +151,7 @@ impl Lights {
                     }
                     // Power through a disk of the scene's size, at normal
                     // incidence: radiance x projected solid angle x area.
+                    // Reset below if the scene has local lights too.
                     let oc = s.one_minus_cos as f64;
                     let proj = PI as f64 * oc * (2.0 - oc);
                     let r = radius as f64;
@@ -157,6 +159,24 @@ impl Lights {
                     sun = Some(entries.len());
                     entries.push(Entry::Sun(s));
                 }
+            }
+        }
+        // The sun's power through the scene's whole cross-section is what
+        // it delivers to an open scene; inside a room it lands mostly on the
+        // outside of the walls, and a power-proportional pick would spend
+        // nearly every light sample of a lamp-lit interior on a sun the
+        // shading point cannot see (nine in ten in the soda shop). As
+        // pbrt-v4's light samplers do for infinite lights, the sun takes
+        // half of the picks when local lights share the rest by power.
+        if let Some(k) = sun {
+            let local: f64 = weights
+                .iter()
+                .enumerate()
+                .filter(|&(i, _)| i != k)
+                .map(|(_, w)| w)
+                .sum();
+            if weights[k] > 0.0 && local > 0.0 {
+                weights[k] = local;
             }
         }
         let total: f64 = weights.iter().sum();
@@ -186,8 +206,8 @@ impl Lights {
         self.prob.iter().all(|&p| p == 0.0)
     }
 
-    /// Picks a light with probability proportional to its power and a point
-    /// (or direction) on it, as seen from `p` with geometric normal `ng`.
+    /// Picks a light (with the probabilities set in [`Lights::new`]) and a
+    /// point (or direction) on it, as seen from `p` with geometric normal `ng`.
     pub fn sample(&self, p: Vec3, ng: Vec3, u: f64, u1: f32, u2: f32) -> Option<LightSample> {
         let i = self
             .cdf
@@ -303,5 +323,46 @@ mod tests {
         // Solid angle of a 0.53° disk: π (0.265°)² to first order.
         let expect = PI * half * half;
         assert!((s.solid_angle - expect).abs() < 1e-4 * expect);
+    }
+
+    /// The sun's share of the light picks, read back from the density a ray
+    /// into its disk is given.
+    fn sun_share(scene: &Scene) -> f32 {
+        let Some(Light::Sun {
+            direction,
+            angular_diameter_deg,
+            ..
+        }) = scene
+            .lights
+            .iter()
+            .find(|l| matches!(l, Light::Sun { .. }))
+            .copied()
+        else {
+            panic!("{} has no sun", scene.source.display());
+        };
+        let (_, pdf) = Lights::new(scene, 0.0)
+            .sun_along(direction.normalize())
+            .expect("the sun's own direction is in its disk");
+        pdf * Light::sun_solid_angle(angular_diameter_deg)
+    }
+
+    #[test]
+    fn the_sun_takes_half_the_picks_beside_local_lights_and_all_alone() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        // Sun and a point light; picks in proportion to power gave the sun
+        // 90% of them.
+        let both = Scene::load(dir.join("glossy-sun/scene.toml")).unwrap();
+        assert!(
+            (sun_share(&both) - 0.5).abs() < 1e-6,
+            "{}",
+            sun_share(&both)
+        );
+        let mut alone = both;
+        alone.lights.retain(|l| matches!(l, Light::Sun { .. }));
+        assert!(
+            (sun_share(&alone) - 1.0).abs() < 1e-6,
+            "{}",
+            sun_share(&alone)
+        );
     }
 }

@@ -131,6 +131,23 @@ typedef uint32_t rw_blend;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
+// Which frame pixels a splat reaches (`--filter`).
+enum rw_filter
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  RW_FILTER_BOX = 0,
+  RW_FILTER_COVER = 1,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum rw_filter rw_filter;
+#else
+typedef uint32_t rw_filter;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
 // A finished bake with the scene it was made from (opaque). `rw_synth`
 // may run on one bake from several threads at once; each thread keeps the
 // base images it read (up to `base_memory_mib` each) for its next frame.
@@ -214,6 +231,9 @@ typedef struct {
   // Subpixels per side each frame pixel is synthesized from, 1 to 4
   // (1: none); only the splatting fills use them.
   uint32_t supersample;
+  // An `rw_filter`: `RW_FILTER_COVER` takes a quarter to a third off a
+  // frame's time for a somewhat higher LRMS (docs/synthesis.md).
+  uint32_t filter;
 } rw_synth_options;
 
 #ifdef __cplusplus

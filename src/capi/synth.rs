@@ -6,7 +6,7 @@ use super::error::{guard, Failure};
 use super::status::rw_status;
 use super::view::rw_view;
 use crate::synth::{
-    Blend, Fill, Kept, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET, MAX_SUPERSAMPLE,
+    Blend, Fill, Filter, Kept, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET, MAX_SUPERSAMPLE,
 };
 
 /// Hole filling (`rangewalk synth --fill`).
@@ -31,6 +31,13 @@ pub enum rw_time_interp {
 pub enum rw_blend {
     RW_BLEND_AVERAGE = 0,
     RW_BLEND_NEAREST = 1,
+}
+
+/// Which frame pixels a splat reaches (`--filter`).
+#[repr(u32)]
+pub enum rw_filter {
+    RW_FILTER_BOX = 0,
+    RW_FILTER_COVER = 1,
 }
 
 /// The options of `rangewalk synth`. Start from `rw_synth_options_default`
@@ -64,6 +71,9 @@ pub struct rw_synth_options {
     /// Subpixels per side each frame pixel is synthesized from, 1 to 4
     /// (1: none); only the splatting fills use them.
     pub supersample: u32,
+    /// An `rw_filter`: `RW_FILTER_COVER` takes a quarter to a third off a
+    /// frame's time for a somewhat higher LRMS (docs/synthesis.md).
+    pub filter: u32,
 }
 
 impl Default for rw_synth_options {
@@ -94,6 +104,10 @@ impl Default for rw_synth_options {
             seed: o.seed,
             base_memory_mib: (DEFAULT_BUDGET >> 20) as u64,
             supersample: o.supersample,
+            filter: match o.filter {
+                Filter::Box => rw_filter::RW_FILTER_BOX,
+                Filter::Cover => rw_filter::RW_FILTER_COVER,
+            } as u32,
         }
     }
 }
@@ -127,6 +141,11 @@ impl rw_synth_options {
             0 => Blend::Average,
             1 => Blend::Nearest,
             v => return Err(bad("blend", v.to_string(), "is not an rw_blend")),
+        };
+        let filter = match self.filter {
+            0 => Filter::Box,
+            1 => Filter::Cover,
+            v => return Err(bad("filter", v.to_string(), "is not an rw_filter")),
         };
         if self.bases == 0 {
             return Err(bad("bases", "0".into(), "must be at least 1"));
@@ -171,8 +190,7 @@ impl rw_synth_options {
             reshade_samples: self.reshade_samples,
             light_rays: self.light_rays,
             seed: self.seed,
-            // The splat filter is not in the C ABI yet: the default.
-            ..Options::default()
+            filter,
         };
         Ok((options, budget))
     }

@@ -552,8 +552,9 @@ def fan_blade(o, c, angle, pitch=0.25):
 
 
 def pendant(o, shades, glows, x, z, drop=0.8):
-    """A pendant lamp: cord (in o), a conical shade (shades) and the
-    glowing disc under the bulb (glows, facing down)."""
+    """A pendant lamp: cord (in o), a conical shade (shades) and the opal
+    glass globe hanging just below the shade's rim (glows), which lights the
+    whole room, ceiling included, rather than only the counter under it."""
     y = H - drop
     o.tube([(x, H, z), (x, y + 0.22, z)], 0.005, 8)
     prof = [(0.2, 0.0), (0.205, 0.005)]
@@ -561,7 +562,7 @@ def pendant(o, shades, glows, x, z, drop=0.8):
              for i in range(1, 11)]
     prof += [(0.03, 0.22)]
     shades.append(((x, y, z), prof))
-    glows.append((x, y + 0.03, z, 0.18))
+    glows.append((x, y - 0.2, z, 0.16))
 
 
 def main():
@@ -772,12 +773,7 @@ def main():
         o.revolve(c, prof, 48, False, True)
     o.group("lamp_glow")
     for x, y, z, r in glows:
-        # a flat disc facing down: (c, p_k, p_k+1) with the angle increasing
-        c = o.vert((x, y, z))
-        ring = [o.vert((x + r * math.cos(2 * math.pi * k / 32), y, z + r * math.sin(2 * math.pi * k / 32)))
-                for k in range(32)]
-        for k in range(32):
-            o.tri(c, ring[k], ring[(k + 1) % 32])
+        o.uv_sphere((x, y, z), r, 32, 16)
 
     # Ceiling fan: downrod and motor (static), blades (turning).
     fx, fy, fz = FAN_AT

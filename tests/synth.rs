@@ -479,6 +479,63 @@ fn motion_compensation_and_reshading_remove_the_errors_they_are_for() {
     assert_eq!(changed, 0, "pixels re-shading changed at a base time");
 }
 
+/// The Cornell box's back wall made a mirror, in which the camera sees the
+/// ceiling light.
+#[test]
+fn a_light_seen_in_a_mirror_keeps_its_radiance_when_reshaded() {
+    let mut scene = load(&scene_path("cornell-box"));
+    let back = scene.objects.iter().position(|o| o.name == "back").unwrap();
+    scene.materials.push(rangewalk::scene::Material {
+        name: "mirror".into(),
+        bsdf: rangewalk::scene::Bsdf::Mirror {
+            reflectance: Vec3::splat(0.9),
+        },
+        emission: None,
+    });
+    scene.objects[back].material = scene.materials.len() - 1;
+    let dir = tempfile::tempdir().unwrap();
+    // Bases coarse enough that the light is a few pixels across, most of
+    // them mixed with the ceiling.
+    let baked = bake_into(&scene, dir.path(), &settings(128, 4), ends(&scene, &[0.0]));
+    let camera = scene.camera("main").unwrap().perspective(128, 128).unwrap();
+    let reference = path_traced(&scene, &camera, 0.0, 64);
+    let opts = Options {
+        time_interp: TimeInterp::Reshade,
+        ..Options::default()
+    };
+    let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
+    let frame = synth.frame(&camera, 0.0, &opts).unwrap().0;
+    // The mirror's pixels the light's image covers at least half of.
+    let light = scene.materials.iter().find_map(|m| m.emission).unwrap();
+    let full = 0.9 * luminance(light.radiance);
+    let image: Vec<usize> = (0..reference.len())
+        .filter(|&k| {
+            reference.object_id[k] == back as u32 && luminance(reference.radiance[k]) > 0.5 * full
+        })
+        .collect();
+    assert!(
+        image.len() >= 4,
+        "the light in the mirror: {} pixels",
+        image.len()
+    );
+    let mean = |img: &RangeImage| {
+        image
+            .iter()
+            .map(|&k| luminance(img.radiance[k]))
+            .sum::<f64>()
+            / image.len() as f64
+    };
+    // A pixel shows the light's image whole or not at all, the reference
+    // its share of it (at least half): the two means agree to within the
+    // rim's share, never by the factor of three that lights mixed with
+    // their surroundings in the bases gave.
+    let (got, want) = (mean(&frame), mean(&reference));
+    assert!(
+        (0.75..=1.35).contains(&(got / want)),
+        "the light in the mirror: {got:.3} synthesized, {want:.3} rendered"
+    );
+}
+
 fn rangewalk(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_rangewalk"))
         .args(args)

@@ -227,7 +227,7 @@ impl Around<'_> {
     }
 }
 
-fn luminance(c: Vec3) -> f32 {
+pub(super) fn luminance(c: Vec3) -> f32 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 

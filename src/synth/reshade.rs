@@ -5,7 +5,8 @@
 //! `diffuse_direct`) is corrected by the change light samples with shadow
 //! rays find between the base times and the frame's; mirrors, whose
 //! radiance belongs to the base's direction and not the frame's, are traced
-//! again and what they reflect is looked up in the bases.
+//! again from where the frame's own rays meet them, and what they reflect
+//! is looked up in the bases (a light: never darker than its emission).
 //!
 //! The correction is a control variate: each pixel draws the same light
 //! samples at the frame's time and at every base time, so where nothing
@@ -21,12 +22,14 @@ use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
 use super::base::Base;
+use super::lights::luminance;
 use super::warp::{Accum, SKY_Z};
 use super::Options;
 use crate::accel::RayEngine;
+use crate::camera::Camera;
 use crate::image::RangeImage;
 use crate::render::surface::{Reflected, SurfacePoint, SurfaceShading};
-use crate::scene::Scene;
+use crate::scene::{Bsdf, Scene};
 
 /// Per object: the motion from the frame's time `t` back to `then`.
 fn motions_back(scene: &Scene, t: f32, then: f32) -> Vec<Affine3A> {
@@ -58,6 +61,33 @@ fn surface_point(a: &Accum, cam: Vec3, back: Option<&[Affine3A]>) -> Option<Surf
         position,
         wo,
     })
+}
+
+/// Where the frame's own ray through pixel (`x`, `y`) meets the mirror
+/// `sp` lies on. A pixel's point is its heaviest sample's, up to half a
+/// base pixel from the pixel's ray: on a diffuse surface that changes
+/// little, but a mirror traced from there shows what the frame sees that
+/// far off, and from bases coarser than the frame the reflection of a
+/// light lands pixels away from where it belongs.
+fn on_own_ray(
+    engine: &dyn RayEngine,
+    camera: &Camera,
+    x: usize,
+    y: usize,
+    sp: SurfacePoint,
+) -> SurfacePoint {
+    let Some(ray) = camera.ray(x as f32 + 0.5, y as f32 + 0.5) else {
+        return sp;
+    };
+    match engine.intersect(&ray) {
+        Some(hit) if hit.object == sp.object => SurfacePoint {
+            object: hit.object,
+            primitive: hit.primitive,
+            position: ray.at(hit.t),
+            wo: -ray.dir.normalize_or_zero(),
+        },
+        _ => sp,
+    }
 }
 
 /// The diffuse direct light of every frame pixel at base time `then`
@@ -130,7 +160,8 @@ pub fn apply(
 ) -> Result<usize> {
     let shading = SurfaceShading::new(scene, engine, t);
     let w = image.width as usize;
-    let cam = image.meta.camera.position;
+    let camera = image.meta.camera;
+    let cam = camera.position;
     // Per base: the motion from the frame's time back to the base's.
     let back: Vec<Vec<Affine3A>> = bases
         .iter()
@@ -145,14 +176,33 @@ pub fn apply(
             let (mut points, mut streams, mut at) = (Vec::new(), Vec::new(), Vec::new());
             let mut misses = 0;
             for (x, a) in acc.iter().enumerate() {
-                let Some(sp) = surface_point(a, cam, None) else {
+                let Some(mut sp) = surface_point(a, cam, None) else {
                     continue;
                 };
+                if matches!(scene.material_of(sp.object).bsdf, Bsdf::Mirror { .. }) {
+                    sp = on_own_ray(engine, &camera, x, y, sp);
+                }
                 if let Some((reflectance, reflected)) = shading.mirror(&sp) {
                     let seen = match reflected {
                         Reflected::Sky(l) => Some(l),
                         Reflected::Surface { hit, position } => {
-                            gather(bases, weights, &back, hit.object, position, opts.tolerance)
+                            let seen =
+                                gather(bases, weights, &back, hit.object, position, opts.tolerance);
+                            // A light small in the bases has few pixels
+                            // that do not mix it with its dark surroundings;
+                            // a surface is never darker than its emission,
+                            // which stands in (as for lights seen directly).
+                            let e = shading.emission(&SurfacePoint {
+                                object: hit.object,
+                                primitive: hit.primitive,
+                                position,
+                                wo: (sp.position - position).normalize_or_zero(),
+                            });
+                            match seen {
+                                Some(l) if luminance(l) >= luminance(e) => Some(l),
+                                _ if e != Vec3::ZERO => Some(e),
+                                other => other,
+                            }
                         }
                     };
                     match seen {

@@ -5,7 +5,8 @@
 //! figure is frames per second of synthesis alone, as a walk-through sees
 //! it after its bases are loaded; each without subpixels and at the
 //! default 2 × 2 a pixel, and each again with `Filter::Cover` (ids ending
-//! in `-cover`).
+//! in `-cover`) and with `Blend::Nearest` (`-nearest`), where bases after
+//! the nearest are projected only where it leaves something to add.
 //!
 //! `RANGEWALK_BENCH_BAKES=<dir>` keeps the bakes in `<dir>` and reuses
 //! them on the next run (a 2,544² bake takes minutes on two cores), and
@@ -27,7 +28,7 @@ use rangewalk::bake::{self, BaseProjection, IndirectSource, Settings, Shard};
 use rangewalk::image::RangeImage;
 use rangewalk::plan::{Plan, PlannedView};
 use rangewalk::scene::Scene;
-use rangewalk::synth::{Filter, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET};
+use rangewalk::synth::{Blend, Filter, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET};
 
 const FRAME: u32 = 512;
 
@@ -93,21 +94,26 @@ fn synth(c: &mut Criterion) {
         ] {
             let camera = walk.at(0.5).perspective(FRAME, FRAME).expect("camera");
             // Without subpixels and at the default 2 x 2; splats as box
-            // filters (the default) and reaching only covered pixels.
-            for (supersample, filter) in [1, 2]
-                .into_iter()
-                .flat_map(|s| [(s, Filter::Box), (s, Filter::Cover)])
-            {
+            // filters (the default) and reaching only covered pixels; bases
+            // averaged (the default) and nearest first.
+            for (supersample, filter, blend) in [1, 2].into_iter().flat_map(|s| {
+                [Filter::Box, Filter::Cover]
+                    .into_iter()
+                    .flat_map(move |f| [(s, f, Blend::Average), (s, f, Blend::Nearest)])
+            }) {
                 let options = Options {
                     bases: views,
                     time_interp: interp,
                     supersample,
                     filter,
+                    blend,
                     ..Options::default()
                 };
-                let suffix = match filter {
-                    Filter::Box => "",
-                    Filter::Cover => "-cover",
+                let suffix = match (filter, blend) {
+                    (Filter::Box, Blend::Average) => "",
+                    (Filter::Cover, Blend::Average) => "-cover",
+                    (Filter::Box, Blend::Nearest) => "-nearest",
+                    (Filter::Cover, Blend::Nearest) => "-cover-nearest",
                 };
                 let id =
                     format!("{images}-images-{views}-views-{interp:?}-ss{supersample}{suffix}")

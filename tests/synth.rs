@@ -16,7 +16,7 @@ use rangewalk::image::{RangeImage, NO_HIT};
 use rangewalk::plan::{Plan, PlannedView};
 use rangewalk::render::{self, RenderSettings};
 use rangewalk::scene::Scene;
-use rangewalk::synth::{Fill, Filter, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET};
+use rangewalk::synth::{Blend, Fill, Filter, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET};
 
 fn scene_path(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -365,6 +365,30 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
         c.lrms
     );
     assert!(c_all.bias.abs() < 0.03, "cover: bias {:+.4}", c_all.bias);
+    // Nearest first (the paper's order, pinterp's -q), which leaves out
+    // what the second base cannot change: the same goals.
+    let nearest = Options {
+        blend: Blend::Nearest,
+        ..Options::default()
+    };
+    let (first, first_stats) = synth.frame(&camera, 0.0, &nearest).unwrap();
+    assert_eq!(first_stats.holes, 0, "nearest: fill both leaves no hole");
+    assert!(
+        first_stats.hidden > 0,
+        "nearest: nothing hidden was left out"
+    );
+    let n = metrics::compare(&first.radiance, &reference.radiance, Some(&inside)).unwrap();
+    let n_all = metrics::compare(&first.radiance, &reference.radiance, None).unwrap();
+    eprintln!(
+        "nearest: LRMS {:.4} (all pixels {:.4}), bias {:+.4}, {} base pixels left out",
+        n.lrms, n_all.lrms, n_all.bias, first_stats.hidden
+    );
+    assert!(
+        n.lrms < 0.2,
+        "nearest: LRMS {:.4} against a 1024-spp render",
+        n.lrms
+    );
+    assert!(n_all.bias.abs() < 0.03, "nearest: bias {:+.4}", n_all.bias);
     assert!(
         all.lrms < 0.5 * plain.lrms,
         "whole frame: LRMS {:.4} traced, {:.4} not",

@@ -182,6 +182,13 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
             format!(", {} mirror pixel(s) no base showed", stats.mirror_misses)
         } else {
             String::new()
+        } + &if options.blend == Blend::Nearest {
+            format!(
+                ", {} base pixel(s) left out where nearer bases decided",
+                stats.hidden
+            )
+        } else {
+            String::new()
         }
     );
     Ok(())

@@ -151,6 +151,10 @@ pub struct FrameStats {
     pub mirror_misses: usize,
     /// Pixels at or beside lights traced again.
     pub light_pixels: usize,
+    /// Base pixels nearest-first blending did not project because the
+    /// frame already held nearer or equal samples wherever they could land
+    /// (counted once for every band of the frame they were left out of).
+    pub hidden: usize,
 }
 
 /// Frames from one bake.
@@ -467,8 +471,8 @@ impl<'a> Synthesizer<'a> {
                     .collect()
             };
             let (lo, hi) = (passes(false), passes(true));
-            warp::warp(&target, &lo, &settings, &mut first);
-            warp::warp(&target, &hi, &settings, &mut second);
+            stats.hidden += warp::warp(&target, &lo, &settings, &mut first);
+            stats.hidden += warp::warp(&target, &hi, &settings, &mut second);
             if background {
                 stats.sky += self.open_to_sky(camera, t, &mut [&mut first, &mut second])?;
             }
@@ -513,7 +517,7 @@ impl<'a> Synthesizer<'a> {
                     twin: twin_of(i),
                 })
                 .collect();
-            warp::warp(&target, &passes, &settings, &mut first);
+            stats.hidden += warp::warp(&target, &passes, &settings, &mut first);
             if background {
                 stats.sky += self.open_to_sky(camera, t, &mut [&mut first])?;
             }
@@ -821,4 +825,100 @@ pub fn check_bake(bake: &Bake) -> Result<()> {
         bail!("{}: the bake's plan has no views", bake.dir.display());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::Ordering;
+
+    use super::*;
+    use crate::accel::Backend;
+    use crate::bake::{self, BaseProjection, IndirectSource, Settings, Shard};
+    use crate::plan::{Plan, PlannedView};
+
+    /// Skipping the samples of later bases that cannot change a pixel is
+    /// an optimisation only: frames are bit for bit those made without it,
+    /// for both ways of interpolating in time and with subpixels.
+    #[test]
+    fn nearest_first_frames_are_the_same_whether_hidden_samples_are_skipped_or_not() {
+        let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes/cornell-box/scene.toml");
+        let scene = Scene::load(&path).unwrap();
+        let Some(ViewSpace::Segment { a, b }) = scene.view_space else {
+            panic!("the Cornell box's view space is a segment");
+        };
+        let plan = Plan {
+            quality: 0.6,
+            views: (0..3)
+                .map(|i| PlannedView {
+                    position: a.lerp(b, i as f32 / 2.0),
+                    times: vec![0.0, 1.0],
+                })
+                .collect(),
+            light_times: vec![0.0, 1.0],
+            ..Plan::default()
+        };
+        let settings = Settings {
+            quality: 0.6,
+            size: 192,
+            spp: 1,
+            projection: BaseProjection::Sphere,
+            indirect: IndirectSource::Path,
+            seed: 1,
+            backend: Backend::default_available(),
+            max_depth: Some(1),
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let mut engine = accel::build(settings.backend, &scene.geometry(), &scene.at(0.0)).unwrap();
+        bake::run(
+            &scene,
+            dir.path(),
+            &settings,
+            Shard::ALL,
+            engine.as_mut(),
+            |_| Ok(plan),
+        )
+        .unwrap();
+        let baked = Bake::open(dir.path(), &scene).unwrap();
+        let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
+        let camera = scene
+            .path("walk")
+            .unwrap()
+            .at(0.5)
+            .perspective(64, 64)
+            .unwrap();
+        for (t, time_interp, supersample) in [
+            (0.0, TimeInterp::Motion, 1),
+            (0.5, TimeInterp::Motion, 2),
+            (0.5, TimeInterp::Linear, 1),
+        ] {
+            let opts = Options {
+                blend: Blend::Nearest,
+                bases: 3,
+                time_interp,
+                supersample,
+                ..Options::default()
+            };
+            let mut frame = |skip: bool| {
+                warp::tests::NO_CULLING.store(!skip, Ordering::Relaxed);
+                synth.frame(&camera, t, &opts).unwrap()
+            };
+            let (skipped, with) = frame(true);
+            let (kept, without) = frame(false);
+            warp::tests::NO_CULLING.store(false, Ordering::Relaxed);
+            let case = format!("t = {t}, {time_interp}, {supersample}²");
+            assert!(with.hidden > 0, "{case}: nothing was skipped");
+            assert_eq!(without.hidden, 0, "{case}");
+            let bits = |i: &RangeImage| -> Vec<u32> {
+                i.radiance
+                    .iter()
+                    .flat_map(|c| c.to_array())
+                    .chain(i.distance.iter().copied())
+                    .map(f32::to_bits)
+                    .chain(i.object_id.iter().copied())
+                    .collect()
+            };
+            assert!(bits(&skipped) == bits(&kept), "{case}: frames differ");
+        }
+    }
 }

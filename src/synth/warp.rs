@@ -285,18 +285,33 @@ impl Target {
     /// Rows a box of points may reach, or `None` where the frame cannot
     /// see it. Only pinhole frames are culled.
     fn rows(&self, b: &Bounds, directions: bool) -> Option<(u32, u32)> {
-        let h = self.camera.height;
+        self.reach(b, directions).map(|r| r.rows)
+    }
+
+    /// The part of the frame a box of points may reach and how near it
+    /// comes, or `None` where the frame cannot see it. Only pinhole frames
+    /// are culled and bounded; other frames are reached whole.
+    fn reach(&self, b: &Bounds, directions: bool) -> Option<Reach> {
+        let (w, h) = (self.camera.width, self.camera.height);
+        let near = if directions {
+            SKY_Z
+        } else {
+            let p = self.camera.position;
+            (b.lo - p).max(p - b.hi).max(Vec3::ZERO).length()
+        };
+        let whole = Reach {
+            rows: (0, h),
+            cols: (0, w),
+            near,
+        };
         let Some(f) = self.focal else {
-            return Some((0, h));
+            return Some(whole);
         };
         let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
         let mut behind = 0;
         // Corners outside each side of the frustum (with a pixel to spare):
         // a box with all eight outside one side is not seen.
-        let (ax, ay) = (
-            (0.5 * self.camera.width as f32 + 2.0) / f,
-            (0.5 * h as f32 + 2.0) / f,
-        );
+        let (ax, ay) = ((0.5 * w as f32 + 2.0) / f, (0.5 * h as f32 + 2.0) / f);
         let mut outside = [0; 4];
         for c in b.corners() {
             let l = if directions {
@@ -321,32 +336,36 @@ impl Target {
             return None;
         }
         if behind > 0 {
-            return Some((0, h));
+            return Some(whole);
         }
-        let half = Vec2::new(self.camera.width as f32, h as f32) * 0.5;
+        let half = Vec2::new(w as f32, h as f32) * 0.5;
         let (lo, hi) = (lo + half - 1.0, hi + half + 1.0);
-        if hi.x < 0.0 || hi.y < 0.0 || lo.x > self.camera.width as f32 || lo.y > h as f32 {
+        if hi.x < 0.0 || hi.y < 0.0 || lo.x > w as f32 || lo.y > h as f32 {
             return None;
         }
-        Some((
-            lo.y.max(0.0) as u32,
-            (hi.y.ceil().max(0.0) as u32 + 1).min(h),
-        ))
+        let span =
+            |lo: f32, hi: f32, n: u32| (lo.max(0.0) as u32, (hi.ceil().max(0.0) as u32 + 1).min(n));
+        Some(Reach {
+            rows: span(lo.y, hi.y, h),
+            cols: span(lo.x, hi.x, w),
+            near,
+        })
     }
 
-    /// Rows a tile of a pass may reach (its points moved to the frame's time).
-    fn tile_rows(&self, tile: &Tile, moves: &[Option<Affine3A>]) -> Option<(u32, u32)> {
-        let mut range: Option<(u32, u32)> = None;
-        let mut add = |r: Option<(u32, u32)>| {
-            if let Some((a, b)) = r {
-                range = Some(range.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
+    /// What a tile of a pass may reach (its points moved to the frame's
+    /// time).
+    fn tile_reach(&self, tile: &Tile, moves: &[Option<Affine3A>]) -> Option<Reach> {
+        let mut range: Option<Reach> = None;
+        let mut add = |r: Option<Reach>| {
+            if let Some(r) = r {
+                range = Some(range.map_or(r, |u| u.union(&r)));
             }
         };
         if let Some(b) = &tile.fixed {
-            add(self.rows(b, false));
+            add(self.reach(b, false));
         }
         if let Some(b) = &tile.sky {
-            add(self.rows(b, true));
+            add(self.reach(b, true));
         }
         for (o, b) in &tile.moving {
             match moves.get(*o as usize).copied().flatten() {
@@ -360,12 +379,31 @@ impl Target {
                         moved.lo = moved.lo.min(p);
                         moved.hi = moved.hi.max(p);
                     }
-                    add(self.rows(&moved, false));
+                    add(self.reach(&moved, false));
                 }
-                None => add(self.rows(b, false)),
+                None => add(self.reach(b, false)),
             }
         }
         range
+    }
+}
+
+/// The frame pixels a box of points may reach (half-open rows and
+/// columns) and its nearest distance from the frame's camera.
+#[derive(Clone, Copy, Debug)]
+struct Reach {
+    rows: (u32, u32),
+    cols: (u32, u32),
+    near: f32,
+}
+
+impl Reach {
+    fn union(&self, o: &Reach) -> Reach {
+        Reach {
+            rows: (self.rows.0.min(o.rows.0), self.rows.1.max(o.rows.1)),
+            cols: (self.cols.0.min(o.cols.0), self.cols.1.max(o.cols.1)),
+            near: self.near.min(o.near),
+        }
     }
 }
 
@@ -394,15 +432,22 @@ struct Projected {
 }
 
 /// Projects every pass into `buffer` (`width * height`, row-major),
-/// whatever it held before.
-pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &mut [Accum]) {
+/// whatever it held before. Returns how many base pixels nearest-first
+/// blending left out of a band because they could not change it (a pixel
+/// of a tile counts once for each band it was left out of).
+pub fn warp(
+    target: &Target,
+    passes: &[Pass],
+    settings: &WarpSettings,
+    buffer: &mut [Accum],
+) -> usize {
     let (w, h) = (target.camera.width, target.camera.height);
     debug_assert_eq!(buffer.len(), (w * h) as usize);
     let band = (h / 8).max(16);
     let bands = h.div_ceil(band) as usize;
     // Every (pass, tile) that may reach each band, in pass order.
-    let mut work: Vec<Vec<(u32, u32)>> = vec![Vec::new(); bands];
-    let lists: Vec<Vec<(u32, u32, u32, u32)>> = passes
+    let mut work: Vec<Vec<(u32, u32, Reach)>> = vec![Vec::new(); bands];
+    let lists: Vec<Vec<(u32, u32, Reach)>> = passes
         .par_iter()
         .enumerate()
         .map(|(i, pass)| {
@@ -418,31 +463,33 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
                     continue;
                 }
                 for t in base.tiles_of(block) {
-                    let Some((a, b)) = target.tile_rows(&base.tiles[t], &pass.moves) else {
+                    let Some(reach) = target.tile_reach(&base.tiles[t], &pass.moves) else {
                         continue;
                     };
                     if matches!(pass.twin, Some(Twin::CarriedBy(_))) && pass.tile_shared(t) {
                         continue;
                     }
-                    if b > a {
-                        list.push((i as u32, t as u32, a, b));
+                    if reach.rows.1 > reach.rows.0 {
+                        list.push((i as u32, t as u32, reach));
                     }
                 }
             }
             list
         })
         .collect();
-    for &(i, t, a, b) in lists.iter().flatten() {
+    for &(i, t, reach) in lists.iter().flatten() {
+        let (a, b) = reach.rows;
         let (first, last) = ((a / band) as usize, ((b - 1) / band) as usize);
         for items in work.iter_mut().take(last + 1).skip(first) {
-            items.push((i, t));
+            items.push((i, t, reach));
         }
     }
+    let cull = settings.blend == Blend::Nearest && culling();
     buffer
         .par_chunks_mut((band * w) as usize)
         .zip(work.par_iter())
         .enumerate()
-        .for_each(|(k, (rows, items))| {
+        .map(|(k, (rows, items))| {
             let y0 = k as u32 * band;
             SCRATCH.with_borrow_mut(|scratch| {
                 // Kept by the thread from band to band and frame to frame:
@@ -454,13 +501,56 @@ pub fn warp(target: &Target, passes: &[Pass], settings: &WarpSettings, buffer: &
                 scratch
                     .alpha
                     .resize(if settings.alpha { n } else { 0 }, 0.0);
-                for &(i, t) in items {
+                scratch.hidden = 0;
+                for &(i, t, reach) in items {
                     let pass = &passes[i as usize];
+                    if cull && hidden(&scratch.hot, w, y0, &reach, settings.tolerance) {
+                        let (tile, base) = (&pass.base.tiles[t as usize], pass.base);
+                        let side = |at: u32, n: u32| ((at + TILE).min(n) - at) as usize;
+                        scratch.hidden +=
+                            side(tile.x0, base.width()) * side(tile.y0, base.height());
+                        continue;
+                    }
                     splat_tile(target, (i, pass), t as usize, settings, y0, scratch);
                 }
                 resolve(passes, &scratch.hot, &scratch.alpha, rows);
-            });
-        });
+                scratch.hidden
+            })
+        })
+        .sum()
+}
+
+/// Frame pixels around a tile's reach that its footprints may still
+/// touch: a footprint reaches half its extent, about a base pixel's
+/// projected size, past its sample.
+const REACH_MARGIN: u32 = 2;
+
+/// Whether samples of a tile that reaches `reach` cannot change the band's
+/// pixels `hot` (rows `y0..`, `width` wide) under nearest-first blending:
+/// every pixel it may touch is covered by an earlier sample, and none of
+/// its points is nearer than those by more than the tolerance. Then a
+/// later base adds nothing there, and its tile is not projected: where the
+/// nearest base sees the frame, the others cost nothing.
+fn hidden(hot: &[Hot], width: u32, y0: u32, reach: &Reach, eps: f32) -> bool {
+    let y1 = y0 + hot.len() as u32 / width;
+    let (ya, yb) = (
+        reach.rows.0.saturating_sub(REACH_MARGIN).max(y0),
+        (reach.rows.1 + REACH_MARGIN).min(y1),
+    );
+    let (xa, xb) = (
+        reach.cols.0.saturating_sub(REACH_MARGIN),
+        (reach.cols.1 + REACH_MARGIN).min(width),
+    );
+    if ya >= yb || xa >= xb {
+        return true;
+    }
+    let limit = reach.near / (1.0 - eps);
+    (ya..yb).all(|y| {
+        let row = ((y - y0) * width) as usize;
+        hot[row + xa as usize..row + xb as usize]
+            .iter()
+            .all(|p| p.covered() && p.z <= limit)
+    })
 }
 
 /// The band's pixels from what they gathered: the heaviest sample's point
@@ -515,7 +605,16 @@ fn splat_tile(
         layers,
         hot: rows,
         alpha: alphas,
+        hidden,
     } = scratch;
+    let cull = settings.blend == Blend::Nearest && culling();
+    // Nearest first, a sample that only overlaps a pixel never changes a
+    // covered one, and an uncovered pixel is a hole: only covering
+    // deposits count, whatever the filter.
+    let filter = match settings.blend {
+        Blend::Nearest => Filter::Cover,
+        Blend::Average => settings.filter,
+    };
     let band_rows = rows.len() as u32 / fw;
     let y1 = y0 + band_rows;
     // The tile's pixels with a ring of their neighbours: a footprint's side
@@ -658,7 +757,7 @@ fn splat_tile(
                 (det.abs() >= 1e-6).then(|| {
                     let extent = e1.abs() + e2.abs();
                     let (lo, hi) = (s.px - 0.5 * extent, s.px + 0.5 * extent);
-                    let (rows, cols) = match settings.filter {
+                    let (rows, cols) = match filter {
                         Filter::Box => (
                             (floor(lo.y).max(y0 as i64), ceil(hi.y).min(y1 as i64) - 1),
                             (floor(lo.x).max(0), ceil(hi.x).min(fw as i64) - 1),
@@ -687,6 +786,28 @@ fn splat_tile(
                 Some((.., (ya, yb), (xa, xb))) if ya > yb || xa > xb => continue,
                 None if !in_band(fx, fy) => continue,
                 _ => {}
+            }
+            // The depth gradient across the frame, so that the z-test
+            // compares depths at the pixel centre: a surface seen at a
+            // grazing angle changes depth by more than the tolerance
+            // within one pixel, and depths taken where the samples fall
+            // would let the nearer part of every pixel win.
+            let grad = match (n1, n2) {
+                (Some((e1, d1)), Some((e2, d2))) if e1.perp_dot(e2).abs() > 1e-6 => {
+                    let det = e1.perp_dot(e2);
+                    Vec2::new(d1 * e2.y - d2 * e1.y, e1.x * d2 - e2.x * d1) / det
+                }
+                (Some((e, d)), _) | (None, Some((e, d))) if e.length_squared() > 1e-12 => {
+                    e * (d / e.length_squared())
+                }
+                _ => Vec2::ZERO,
+            };
+            // Where the pixels it could decide already hold nearer or
+            // equal samples of earlier bases, nearest-first blending keeps
+            // them: the rest of the sample's work would change nothing.
+            if cull && hidden_sample(&s, grad, footprint.as_ref(), (fx, fy), rows, (fw, y0), eps) {
+                *hidden += 1;
+                continue;
             }
             // Weight: how close the base's ray is to the frame's ray,
             // 1/sin of the angle between them (sky: the same direction).
@@ -724,21 +845,6 @@ fn splat_tile(
                 alpha,
                 pixel: k as u32,
                 tag: index << 1,
-            };
-            // The depth gradient across the frame, so that the z-test
-            // compares depths at the pixel centre: a surface seen at a
-            // grazing angle changes depth by more than the tolerance
-            // within one pixel, and depths taken where the samples fall
-            // would let the nearer part of every pixel win.
-            let grad = match (n1, n2) {
-                (Some((e1, d1)), Some((e2, d2))) if e1.perp_dot(e2).abs() > 1e-6 => {
-                    let det = e1.perp_dot(e2);
-                    Vec2::new(d1 * e2.y - d2 * e1.y, e1.x * d2 - e2.x * d1) / det
-                }
-                (Some((e, d)), _) | (None, Some((e, d))) if e.length_squared() > 1e-12 => {
-                    e * (d / e.length_squared())
-                }
-                _ => Vec2::ZERO,
             };
             let mut deposit = |px: i64, py: i64, area: f32, covers: bool| {
                 if in_band(px, py) {
@@ -787,13 +893,85 @@ fn splat_tile(
                     // where the box approximating it misses the pixel.
                     if covers {
                         deposit(px, py, area.max(MIN_AREA), true);
-                    } else if settings.filter == Filter::Box && area > MIN_AREA {
+                    } else if filter == Filter::Box && area > MIN_AREA {
                         deposit(px, py, area, false);
                     }
                 }
             }
         }
     }
+}
+
+/// Whether a sample's covering deposits (the pixels whose centres its
+/// footprint's bounds hold, and the pixel under it) would all meet pixels
+/// of the band (`hot`, rows from `y0`, `fw` wide) covered by samples it is
+/// not nearer than by the tolerance: under nearest-first blending it then
+/// changes nothing (overlapping deposits never change a covered pixel).
+/// Its depth over the footprint is bounded by the footprint's corners,
+/// between which the depth is linear.
+fn hidden_sample(
+    s: &Projected,
+    grad: Vec2,
+    footprint: Option<&Footprint>,
+    (fx, fy): (i64, i64),
+    hot: &[Hot],
+    (fw, y0): (u32, u32),
+    eps: f32,
+) -> bool {
+    let clamp = |z: f32| {
+        if s.sky {
+            s.z
+        } else {
+            z.clamp(0.5 * s.z, 2.0 * s.z)
+        }
+    };
+    let at = |c: Vec2| clamp(s.z + grad.dot(c - s.px));
+    let centre = |px: i64, py: i64| Vec2::new(px as f32 + 0.5, py as f32 + 0.5);
+    let (mut low, rows, cols) = match footprint {
+        None => (at(centre(fx, fy)), (fy, fy), (fx, fx)),
+        Some(&(e1, e2, _, extent, ..)) => {
+            let origin = s.px - 0.5 * (e1 + e2);
+            let corners = [origin, origin + e1, origin + e2, origin + e1 + e2];
+            let low = corners
+                .iter()
+                .fold(at(centre(fx, fy)), |m, &c| m.min(at(c)));
+            let (lo, hi) = (s.px - 0.5 * extent, s.px + 0.5 * extent);
+            (
+                low,
+                (ceil(lo.y - 0.5).min(fy), floor(hi.y - 0.5).max(fy)),
+                (ceil(lo.x - 0.5).min(fx), floor(hi.x - 0.5).max(fx)),
+            )
+        }
+    };
+    // Rounding of the depths at pixel centres against the corners'.
+    low *= 1.0 - 1e-5;
+    let y1 = y0 as i64 + (hot.len() as u32 / fw) as i64;
+    let rows = (rows.0.max(y0 as i64), rows.1.min(y1 - 1));
+    let cols = (cols.0.max(0), cols.1.min(fw as i64 - 1));
+    if rows.0 > rows.1 || cols.0 > cols.1 {
+        // Nothing it decides lies in the band.
+        return true;
+    }
+    (rows.0..=rows.1).all(|py| {
+        let row = (py - y0 as i64) as usize * fw as usize;
+        hot[row + cols.0 as usize..=row + cols.1 as usize]
+            .iter()
+            .all(|a| a.covered() && low >= a.z * (1.0 - eps))
+    })
+}
+
+/// A sample's footprint: its sides, their cross product, its bounds'
+/// extent, and the rows and columns its deposits reach.
+type Footprint = (Vec2, Vec2, f32, Vec2, (i64, i64), (i64, i64));
+
+/// Whether nearest-first blending skips what cannot change the frame
+/// (off only to test that skipping changes nothing).
+fn culling() -> bool {
+    #[cfg(test)]
+    if tests::NO_CULLING.load(std::sync::atomic::Ordering::Relaxed) {
+        return false;
+    }
+    true
 }
 
 /// What a thread reuses from tile to tile and band to band.
@@ -807,6 +985,8 @@ struct Scratch {
     /// The band's pixels, and their sums of `alpha` where asked for.
     hot: Vec<Hot>,
     alpha: Vec<f32>,
+    /// Base pixels of the band left out by nearest-first blending.
+    hidden: usize,
 }
 
 thread_local! {
@@ -863,7 +1043,9 @@ impl Sample {
         let within = !nearer && z <= a.z * (1.0 + eps);
         let replace = a.z == 0.0
             || match (covers, a.covered()) {
-                (true, false) => !within,
+                // Nearest first, a covering sample still decides a pixel
+                // that only the edges of others overlapped.
+                (true, false) => !within || blend == Blend::Nearest,
                 (false, true) => false,
                 _ => nearer,
             };
@@ -897,8 +1079,13 @@ impl Sample {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
+
+    /// Turns off nearest-first blending's skipping of hidden samples, to
+    /// show that it changes nothing.
+    pub static NO_CULLING: std::sync::atomic::AtomicBool =
+        std::sync::atomic::AtomicBool::new(false);
 
     #[test]
     fn floor_and_ceil_agree_with_libm() {

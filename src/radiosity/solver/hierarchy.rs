@@ -57,6 +57,14 @@ pub struct Hierarchy {
     pub emission: Vec<[Vec3; 2]>,
     /// Surface elements are not split below this area.
     pub min_area: f32,
+    /// The surface nodes under each cluster, as a range of `surfaces`
+    /// (depth first, so every cluster's are contiguous), with the running
+    /// sum of their areas before each (one more than `surfaces`): a point
+    /// on a cluster is found by one search of its range rather than a walk
+    /// down its tree, a node at a time, for every shadow ray.
+    surfaces: Vec<u32>,
+    area_before: Vec<f64>,
+    spans: Vec<[u32; 2]>,
 }
 
 /// Surfaces whose normals agree to this cosine count as facing one way
@@ -89,6 +97,9 @@ impl Hierarchy {
                 })
                 .collect(),
             min_area,
+            surfaces: Vec::new(),
+            area_before: Vec::new(),
+            spans: Vec::new(),
         };
         let mut roots = Vec::with_capacity(s.patches.len());
         for (i, p) in s.patches.iter().enumerate() {
@@ -127,7 +138,51 @@ impl Hierarchy {
             [one] if h.node(one).cluster => one,
             _ => h.cluster(&mut groups, NONE),
         };
+        h.spans = vec![[0, 0]; h.nodes.len()];
+        if h.root != NONE {
+            h.span(h.root);
+        }
+        h.area_before = std::iter::once(0.0)
+            .chain(h.surfaces.iter().scan(0.0f64, |sum, &i| {
+                *sum += h.nodes[i as usize].area as f64;
+                Some(*sum)
+            }))
+            .collect();
         h
+    }
+
+    /// Lists the surface nodes under cluster tree node `i` and records its
+    /// range of them.
+    fn span(&mut self, i: u32) {
+        let start = self.surfaces.len() as u32;
+        if self.nodes[i as usize].cluster {
+            for k in 0..self.nodes[i as usize].children.len() {
+                self.span(self.nodes[i as usize].children[k]);
+            }
+        } else {
+            self.surfaces.push(i);
+        }
+        self.spans[i as usize] = [start, self.surfaces.len() as u32];
+    }
+
+    /// The surface node under cluster `i` that the fraction `u` of its
+    /// area falls in (its surfaces in order), and the fraction of that
+    /// node's own area where it falls.
+    pub fn surface_at(&self, i: u32, u: f32) -> (u32, f32) {
+        let [a, b] = self.spans[i as usize];
+        let (a, b) = (a as usize, b as usize);
+        let (lo, hi) = (self.area_before[a], self.area_before[b]);
+        let target = lo + (hi - lo) * u as f64;
+        // The last surface whose running sum before it is at most `target`.
+        let k = a + self.area_before[a + 1..b].partition_point(|&s| s <= target);
+        let node = self.surfaces[k];
+        let own = self.area_before[k + 1] - self.area_before[k];
+        let f = if own > 0.0 {
+            ((target - self.area_before[k]) / own) as f32
+        } else {
+            0.0
+        };
+        (node, f.clamp(0.0, 0.999_999))
     }
 
     fn push_surface(&mut self, patch: u32, tri: [Vec3; 3], parent: u32) -> u32 {
@@ -301,5 +356,57 @@ impl Hierarchy {
             i = c;
         }
         i
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Scene;
+
+    /// A point on a cluster is on one of its own surfaces, and its surfaces
+    /// take fractions of the cluster in proportion to their areas: the
+    /// cluster's area sampled evenly lands on each surface as often as its
+    /// share, to the spacing of the samples.
+    #[test]
+    fn points_on_a_cluster_fall_on_its_surfaces_by_area() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell-box/scene.toml");
+        let scene = Scene::load(std::path::Path::new(path)).unwrap();
+        let s = crate::radiosity::Simplified::whole(&scene);
+        let h = Hierarchy::build(&s, &scene.at(0.0), &[], 0.0);
+        let under = |c: u32| {
+            let mut found = Vec::new();
+            let mut stack = vec![c];
+            while let Some(i) = stack.pop() {
+                match h.node(i).cluster {
+                    true => stack.extend(&h.node(i).children),
+                    false => found.push(i),
+                }
+            }
+            found
+        };
+        let clusters: Vec<u32> = (0..h.nodes.len() as u32)
+            .filter(|&i| h.node(i).cluster)
+            .collect();
+        assert!(clusters.len() > 3, "{} clusters", clusters.len());
+        let n = 20_000;
+        for c in clusters {
+            let mine = under(c);
+            let mut hits = vec![0usize; h.nodes.len()];
+            for j in 0..n {
+                let (i, f) = h.surface_at(c, (j as f32 + 0.5) / n as f32);
+                assert!(mine.contains(&i), "cluster {c}: node {i} is not under it");
+                assert!((0.0..1.0).contains(&f), "cluster {c}: fraction {f}");
+                hits[i as usize] += 1;
+            }
+            for &i in &mine {
+                let share = h.node(i).area / h.node(c).area;
+                let got = hits[i as usize] as f32 / n as f32;
+                assert!(
+                    (got - share).abs() <= 2.0 / n as f32 + 1e-4,
+                    "cluster {c}, surface {i}: {got} of the samples for {share} of the area"
+                );
+            }
+        }
     }
 }

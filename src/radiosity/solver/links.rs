@@ -571,20 +571,8 @@ fn sample_point(
     leaf: bool,
 ) -> (Vec3, Vec3, u32) {
     let mut u = (j as f32 + unit(hash3(seed, j as u32, 1))) / n as f32;
-    while h.node(i).cluster {
-        let kids = &h.node(i).children;
-        let mut pick = u * h.node(i).area;
-        let mut next = kids[kids.len() - 1];
-        for &c in kids {
-            let a = h.node(c).area;
-            if pick < a {
-                u = (pick / a).clamp(0.0, 0.999_999);
-                next = c;
-                break;
-            }
-            pick -= a;
-        }
-        i = next;
+    if h.node(i).cluster {
+        (i, u) = h.surface_at(i, u);
     }
     let node = h.node(i);
     let (mut a, mut b) = (u, unit(hash3(seed, j as u32, 2)));

@@ -159,6 +159,16 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
             args.synth.exposure,
         )?;
     }
+    let mut extra = String::new();
+    if options.time_interp == TimeInterp::Reshade {
+        extra += &format!(", {} mirror pixel(s) no base showed", stats.mirror_misses);
+    }
+    if options.blend == Blend::Nearest {
+        extra += &format!(
+            ", {} base pixel(s) left out where nearer bases decided",
+            stats.hidden
+        );
+    }
     println!(
         "{}: {}x{} at t = {} s from {} base image(s) ({}): {:.1} ms synthesis + {:.3} s reading bases; {} hole pixel(s), {} filled, {} open to the sky, {} pixel(s) at lights traced{}",
         args.out.display(),
@@ -178,18 +188,7 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
         stats.filled,
         stats.sky,
         stats.light_pixels,
-        if options.time_interp == TimeInterp::Reshade {
-            format!(", {} mirror pixel(s) no base showed", stats.mirror_misses)
-        } else {
-            String::new()
-        } + &if options.blend == Blend::Nearest {
-            format!(
-                ", {} base pixel(s) left out where nearer bases decided",
-                stats.hidden
-            )
-        } else {
-            String::new()
-        }
+        extra
     );
     Ok(())
 }

@@ -210,6 +210,14 @@ pub struct WarpSettings {
     pub alpha: bool,
 }
 
+impl WarpSettings {
+    /// Whether later passes are left out where they cannot change a pixel
+    /// (nearest-first blending).
+    fn culls(&self) -> bool {
+        self.blend == Blend::Nearest && culling()
+    }
+}
+
 /// The frame's camera with what projecting into it needs precomputed.
 pub struct Target {
     pub camera: Camera,
@@ -484,7 +492,7 @@ pub fn warp(
             items.push((i, t, reach));
         }
     }
-    let cull = settings.blend == Blend::Nearest && culling();
+    let cull = settings.culls();
     buffer
         .par_chunks_mut((band * w) as usize)
         .zip(work.par_iter())
@@ -607,7 +615,7 @@ fn splat_tile(
         alpha: alphas,
         hidden,
     } = scratch;
-    let cull = settings.blend == Blend::Nearest && culling();
+    let cull = settings.culls();
     // Nearest first, a sample that only overlaps a pixel never changes a
     // covered one, and an uncovered pixel is a hole: only covering
     // deposits count, whatever the filter.

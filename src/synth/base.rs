@@ -139,7 +139,7 @@ pub fn from_half(c: &[f16; 3]) -> Vec3 {
 
 impl Base {
     /// Prepares manifest image `image` of view `view` from the range image.
-    pub fn new(scene: &Scene, image: usize, view: usize, img: RangeImage) -> Result<Base> {
+    pub fn new(scene: &Scene, image: usize, view: usize, mut img: RangeImage) -> Result<Base> {
         let n = img.len();
         let camera = img.meta.camera;
         ensure!(
@@ -157,6 +157,7 @@ impl Base {
                 scene.objects.len()
             );
         }
+        super::lights::unmix_beside_lights(scene, &mut img);
         let brightest = img
             .radiance
             .par_iter()

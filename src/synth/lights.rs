@@ -50,20 +50,7 @@ pub fn trace(
     let radiance = &image.radiance;
     let emissive = emissive(scene);
     let emits = |id: u32| emissive.get(id as usize).copied().unwrap_or(false);
-    // Pixels on either side of a change of surface, and their 3×3
-    // neighbourhoods: every pixel whose neighbours do not all show its own
-    // surface lies in them (and a few more, a pixel from such a change).
-    let touched: Vec<bool> = (0..ids.len())
-        .into_par_iter()
-        .map(|k| {
-            let (x, y) = (k % w, k / w);
-            (x + 1 < w && ids[k] != ids[k + 1])
-                || (x > 0 && ids[k] != ids[k - 1])
-                || (y + 1 < h && ids[k] != ids[k + w])
-                || (y > 0 && ids[k] != ids[k - w])
-        })
-        .collect();
-    let interior: Vec<bool> = dilate(&touched, w, h).into_iter().map(|e| !e).collect();
+    let interior = interior(ids, w, h);
     let lit: Vec<bool> = dilate(
         &ids.par_iter().map(|&id| emits(id)).collect::<Vec<_>>(),
         w,
@@ -140,6 +127,77 @@ pub fn trace(
     count
 }
 
+/// Gives base pixels beside a light the radiance of their own surface
+/// away from it; returns how many changed.
+///
+/// A base pixel's radiance is the mean over its area, its point the one
+/// its centre ray meets. Beside a light the mean holds part of the light,
+/// and reprojection carries it to wherever that point lands in the frame:
+/// with parallax, on a wall away from the frame's own view of the light,
+/// where [`trace`] (which mends the frame's pixels at and beside lights)
+/// does not reach. Such a pixel takes the nearest pixel within [`REACH`]
+/// of the same object and face that no light touches; a pixel without
+/// one keeps its value.
+pub fn unmix_beside_lights(scene: &Scene, image: &mut RangeImage) -> usize {
+    let (w, h) = (image.width as usize, image.height as usize);
+    let emissive = emissive(scene);
+    let ids = &image.object_id;
+    let on_light: Vec<bool> = ids
+        .par_iter()
+        .map(|&id| emissive.get(id as usize).copied().unwrap_or(false))
+        .collect();
+    if !on_light.contains(&true) {
+        return 0;
+    }
+    let interior = interior(ids, w, h);
+    let lit = dilate(&on_light, w, h);
+    let around = Around {
+        ids,
+        interior: &interior,
+        lit: &lit,
+        normal: &image.normal,
+        radiance: &image.radiance,
+        w: w as i64,
+        h: h as i64,
+    };
+    let values: Vec<(usize, Vec3)> = (0..ids.len())
+        .into_par_iter()
+        .filter(|&k| lit[k] && !on_light[k] && ids[k] != NO_HIT)
+        .filter_map(|k| {
+            let (sx, sy) = ((k % w) as f32 + 0.5, (k / w) as f32 + 0.5);
+            let normal = image.normal[k];
+            let j = around.best(ids[k], normal, sx, sy, |j| {
+                !lit[j] && image.normal[j].dot(normal).abs() >= FACE_COS
+            })?;
+            Some((k, image.radiance[j]))
+        })
+        .collect();
+    let count = values.len();
+    for (k, c) in values {
+        image.radiance[k] = c;
+    }
+    count
+}
+
+/// Per pixel: whether its 3×3 neighbourhood is free of changes of
+/// surface, so that its value cannot mix two surfaces.
+fn interior(ids: &[u32], w: usize, h: usize) -> Vec<bool> {
+    // Pixels on either side of a change of surface, and their 3×3
+    // neighbourhoods: every pixel whose neighbours do not all show its own
+    // surface lies in them (and a few more, a pixel from such a change).
+    let touched: Vec<bool> = (0..ids.len())
+        .into_par_iter()
+        .map(|k| {
+            let (x, y) = (k % w, k / w);
+            (x + 1 < w && ids[k] != ids[k + 1])
+                || (x > 0 && ids[k] != ids[k - 1])
+                || (y + 1 < h && ids[k] != ids[k + w])
+                || (y > 0 && ids[k] != ids[k - w])
+        })
+        .collect();
+    dilate(&touched, w, h).into_iter().map(|e| !e).collect()
+}
+
 /// Per object: whether it emits light.
 pub(super) fn emissive(scene: &Scene) -> Vec<bool> {
     (0..scene.objects.len() as u32)
@@ -207,12 +265,25 @@ impl Around<'_> {
         sy: f32,
         inside_only: bool,
     ) -> Option<Vec3> {
+        self.best(object, normal, sx, sy, |j| !inside_only || self.interior[j])
+            .map(|j| self.radiance[j])
+    }
+
+    /// The pixel [`Around::nearest`] prefers among those `accept` allows.
+    fn best(
+        &self,
+        object: u32,
+        normal: Vec3,
+        sx: f32,
+        sy: f32,
+        accept: impl Fn(usize) -> bool,
+    ) -> Option<usize> {
         let (cx, cy) = (sx.floor() as i64, sy.floor() as i64);
         let mut best: Option<((bool, bool, bool, f32), usize)> = None;
         for v in (cy - REACH).max(0)..=(cy + REACH).min(self.h - 1) {
             for u in (cx - REACH).max(0)..=(cx + REACH).min(self.w - 1) {
                 let j = (v * self.w + u) as usize;
-                if self.ids[j] != object || (inside_only && !self.interior[j]) {
+                if self.ids[j] != object || !accept(j) {
                     continue;
                 }
                 let d = (u as f32 + 0.5 - sx).powi(2) + (v as f32 + 0.5 - sy).powi(2);
@@ -223,7 +294,7 @@ impl Around<'_> {
                 }
             }
         }
-        best.map(|(_, j)| self.radiance[j])
+        best.map(|(_, j)| j)
     }
 }
 
@@ -242,4 +313,88 @@ fn hammersley(n: u32) -> Vec<(f32, f32)> {
             ((i as f32 + 0.5) / n as f32, y.fract())
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{Camera, Projection};
+    use crate::image::RangeMeta;
+
+    /// An 8×8 view of the Cornell box's ceiling (radiance 1) with the light
+    /// (40) on a 2×2 square in the middle; the ring of pixels around the
+    /// light holds a mixture of both (10).
+    fn ceiling_with_a_light(scene: &Scene) -> RangeImage {
+        let id = |name: &str| scene.objects.iter().position(|o| o.name == name).unwrap() as u32;
+        let camera = Camera::looking(
+            Vec3::ZERO,
+            Vec3::Y,
+            Vec3::Z,
+            Projection::Perspective { vfov_deg: 40.0 },
+            8,
+            8,
+        )
+        .unwrap();
+        let mut image = RangeImage::empty(RangeMeta {
+            camera,
+            time: 0.0,
+            scene: String::new(),
+        });
+        for k in 0..64 {
+            let (x, y) = (k % 8, k / 8);
+            let (on, beside) = (
+                (3..5).contains(&x) && (3..5).contains(&y),
+                (2..6).contains(&x) && (2..6).contains(&y),
+            );
+            image.object_id[k] = id(if on { "light" } else { "ceiling" });
+            image.normal[k] = -Vec3::Y;
+            image.distance[k] = 1.0;
+            image.radiance[k] = Vec3::splat(if on {
+                40.0
+            } else if beside {
+                10.0
+            } else {
+                1.0
+            });
+        }
+        image
+    }
+
+    #[test]
+    fn base_pixels_beside_a_light_take_their_surface_away_from_it() {
+        let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes/cornell-box/scene.toml");
+        let scene = Scene::load(&path).unwrap();
+        let mut image = ceiling_with_a_light(&scene);
+        let before = image.clone();
+        assert_eq!(unmix_beside_lights(&scene, &mut image), 12);
+        for k in 0..64 {
+            let want = if before.radiance[k].x == 10.0 {
+                1.0
+            } else {
+                before.radiance[k].x
+            };
+            assert_eq!(image.radiance[k], Vec3::splat(want), "pixel {k}");
+        }
+
+        // A pixel of another object, or of another face of its own, with
+        // no clean pixel of its face within reach keeps its value.
+        let mut image = ceiling_with_a_light(&scene);
+        let back = scene.objects.iter().position(|o| o.name == "back").unwrap() as u32;
+        image.object_id[2 * 8 + 2] = back;
+        image.normal[5 * 8 + 5] = Vec3::Z;
+        assert_eq!(unmix_beside_lights(&scene, &mut image), 10);
+        assert_eq!(image.radiance[2 * 8 + 2], Vec3::splat(10.0));
+        assert_eq!(image.radiance[5 * 8 + 5], Vec3::splat(10.0));
+
+        // Nothing changes where no light is in view.
+        let mut image = ceiling_with_a_light(&scene);
+        let ceiling = image.object_id[0];
+        for id in image.object_id.iter_mut() {
+            *id = ceiling;
+        }
+        let before = image.clone();
+        assert_eq!(unmix_beside_lights(&scene, &mut image), 0);
+        assert_eq!(image.radiance, before.radiance);
+    }
 }

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use rangewalk::accel::Backend;
 use rangewalk::eval::motion::{self, MotionArgs};
 use rangewalk::eval::synthesis::{CommonArgs, SequenceArgs};
-use rangewalk::synth::{Fill, TimeInterp};
+use rangewalk::synth::{Blend, Fill, TimeInterp};
 
 fn args(out: PathBuf) -> MotionArgs {
     MotionArgs {
@@ -20,6 +20,7 @@ fn args(out: PathBuf) -> MotionArgs {
             base_spp: 2,
             base_size: Some(64),
             supersample: 2,
+            blend: Blend::Average,
             backend: Backend::default_available(),
             no_flip: true,
         },
@@ -78,6 +79,7 @@ fn motion_on_the_cornell_box() {
         }
     }
     assert!(md.contains("fully rendered"), "{md}");
+    assert!(md.contains("blended by averaging"), "{md}");
     assert_eq!(csv_rows(&out.join("qualities.csv")).len(), 2 * 3);
     assert_eq!(csv_rows(&out.join("frames.csv")).len(), 2 * 3 * 3);
 
@@ -103,8 +105,12 @@ fn motion_on_the_cornell_box() {
     }
 
     // A rerun reuses the bakes and references, and still reports the bake
-    // times the first run recorded.
-    let again = motion::run(&args(out.clone())).unwrap();
+    // times the first run recorded; its frames are blended as it asks.
+    let mut nearest = args(out.clone());
+    nearest.common.blend = Blend::Nearest;
+    let again = motion::run(&nearest).unwrap();
+    let md = std::fs::read_to_string(out.join("table.md")).unwrap();
+    assert!(md.contains("blended nearest first"), "{md}");
     assert!(again.references.iter().all(|x| x.reused));
     for (a, b) in r.qualities.iter().zip(&again.qualities) {
         assert!(b.bake.reused);

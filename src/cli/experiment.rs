@@ -9,7 +9,7 @@ use rangewalk::eval::walkthrough::{self, BakeViews};
 use rangewalk::eval::{experiment, motion, synthesis, views};
 use rangewalk::image;
 use rangewalk::scene::ViewSpace;
-use rangewalk::synth::{Fill, TimeInterp};
+use rangewalk::synth::{Blend, Fill, TimeInterp};
 
 use super::choice;
 
@@ -190,6 +190,11 @@ pub struct Common {
     /// finer than the bases' pixels they add cost, not accuracy.
     #[arg(long, default_value_t = rangewalk::synth::Options::default().supersample)]
     pub supersample: u32,
+    /// How the samples of several bases meet in a pixel: `average` where
+    /// they agree within the depth tolerance, or `nearest` first (the
+    /// paper's order, pinterp's `-q`).
+    #[arg(long, value_parser = choice::<Blend>(), default_value_t = rangewalk::synth::Options::default().blend)]
+    pub blend: Blend,
     #[arg(long, value_parser = choice::<Backend>(), default_value_t = Backend::default_available())]
     pub backend: Backend,
     /// Leave out the FLIP column (when the Python environment of `make deps`
@@ -209,6 +214,7 @@ impl From<Common> for synthesis::CommonArgs {
             base_spp: a.base_spp,
             base_size: a.base_size,
             supersample: a.supersample,
+            blend: a.blend,
             backend: a.backend,
             no_flip: a.no_flip,
         }

@@ -112,6 +112,7 @@ pub fn run(args: &MotionArgs) -> Result<MotionResults> {
             fill: args.sequence.fill,
             bases: 1,
             supersample: args.common.supersample,
+            blend: args.common.blend,
             ..Options::default()
         },
     };

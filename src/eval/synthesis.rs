@@ -29,7 +29,7 @@ use crate::plan::{self, Plan, PlanOptions};
 use crate::radiosity::Quality;
 use crate::scene::hash::ContentHash;
 use crate::scene::Scene;
-use crate::synth::{self, Fill, Options, Synthesizer, TimeInterp};
+use crate::synth::{self, Blend, Fill, Options, Synthesizer, TimeInterp};
 
 /// Seed of the base images: `rangewalk bake`'s default (each image's
 /// sampler is seeded from it, the view and the time).
@@ -60,6 +60,8 @@ pub struct CommonArgs {
     pub base_size: Option<u32>,
     /// Subpixels per side of every synthesized frame pixel.
     pub supersample: u32,
+    /// How the samples of several bases meet in a pixel.
+    pub blend: Blend,
     pub backend: Backend,
     /// Leave out the FLIP column (when the Python environment of `make deps`
     /// is not installed).
@@ -908,8 +910,14 @@ pub fn differences(args: &CommonArgs, base_size: u32, what: &str) -> String {
     let _ = writeln!(
         md,
         "- frames {}x{} (the paper's not stated), at {2}x{2} subpixels a pixel where splats fill \
-         (fill foreground and both); {what};",
-        args.size.0, args.size.1, args.supersample
+         (fill foreground and both), bases blended {3}; {what};",
+        args.size.0,
+        args.size.1,
+        args.supersample,
+        match args.blend {
+            Blend::Average => "by averaging where they agree",
+            Blend::Nearest => "nearest first (the paper's order)",
+        }
     );
     let _ = writeln!(
         md,

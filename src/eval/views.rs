@@ -257,6 +257,7 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
                         time_interp: TimeInterp::Linear,
                         bases: 2,
                         supersample: c.supersample,
+                        blend: c.blend,
                         ..Options::default()
                     };
                     let mut r = synthesis::synthesize(

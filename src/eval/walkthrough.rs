@@ -154,6 +154,7 @@ pub fn run(args: &WalkthroughArgs) -> Result<WalkResults> {
             fill: args.sequence.fill,
             bases: args.bases,
             supersample: args.common.supersample,
+            blend: args.common.blend,
             ..Options::default()
         },
     };
@@ -575,7 +576,7 @@ mod tests {
     use crate::eval::metrics::ImageError;
     use crate::eval::synthesis::{BakeCost, BakeTiming, SynthFrame};
     use crate::plan::PlannedView;
-    use crate::synth::Fill;
+    use crate::synth::{Blend, Fill};
 
     fn error(lrms: f64) -> ImageError {
         ImageError {
@@ -642,6 +643,7 @@ mod tests {
                     base_spp: 4,
                     base_size: Some(16),
                     supersample: 2,
+                    blend: Blend::Average,
                     backend: Backend::Bvh,
                     no_flip: true,
                 },

@@ -335,25 +335,37 @@ mod tests {
     use crate::camera::{Camera, Projection};
     use crate::image::RangeMeta;
 
+    fn cornell() -> Scene {
+        let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes/cornell-box/scene.toml");
+        Scene::load(&path).unwrap()
+    }
+
+    /// An empty range image `width` pixels wide and 8 high, looking along
+    /// `forward`.
+    fn blank(forward: Vec3, up: Vec3, width: u32) -> RangeImage {
+        let camera = Camera::looking(
+            Vec3::ZERO,
+            forward,
+            up,
+            Projection::Perspective { vfov_deg: 40.0 },
+            width,
+            8,
+        )
+        .unwrap();
+        RangeImage::empty(RangeMeta {
+            camera,
+            time: 0.0,
+            scene: String::new(),
+        })
+    }
+
     /// An 8×8 view of the Cornell box's ceiling (radiance 1) with the light
     /// (40) on a 2×2 square in the middle; the ring of pixels around the
     /// light holds a mixture of both (10).
     fn ceiling_with_a_light(scene: &Scene) -> RangeImage {
         let id = |name: &str| scene.objects.iter().position(|o| o.name == name).unwrap() as u32;
-        let camera = Camera::looking(
-            Vec3::ZERO,
-            Vec3::Y,
-            Vec3::Z,
-            Projection::Perspective { vfov_deg: 40.0 },
-            8,
-            8,
-        )
-        .unwrap();
-        let mut image = RangeImage::empty(RangeMeta {
-            camera,
-            time: 0.0,
-            scene: String::new(),
-        });
+        let mut image = blank(Vec3::Y, Vec3::Z, 8);
         for k in 0..64 {
             let (x, y) = (k % 8, k / 8);
             let (on, beside) = (
@@ -376,9 +388,7 @@ mod tests {
 
     #[test]
     fn base_pixels_beside_a_light_take_their_surface_away_from_it() {
-        let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("scenes/cornell-box/scene.toml");
-        let scene = Scene::load(&path).unwrap();
+        let scene = cornell();
         let mut image = ceiling_with_a_light(&scene);
         let before = image.clone();
         assert_eq!(unmix(&scene, &mut image), 12);
@@ -416,20 +426,7 @@ mod tests {
     /// (radiance 1); the sky beside a bar holds part of it (0.5).
     fn bars(scene: &Scene, width: usize, at: &[usize]) -> RangeImage {
         let back = scene.objects.iter().position(|o| o.name == "back").unwrap() as u32;
-        let camera = Camera::looking(
-            Vec3::ZERO,
-            Vec3::Z,
-            Vec3::Y,
-            Projection::Perspective { vfov_deg: 40.0 },
-            width as u32,
-            8,
-        )
-        .unwrap();
-        let mut image = RangeImage::empty(RangeMeta {
-            camera,
-            time: 0.0,
-            scene: String::new(),
-        });
+        let mut image = blank(Vec3::Z, Vec3::Y, width as u32);
         for k in 0..width * 8 {
             let x = k % width;
             if at.contains(&x) {
@@ -446,9 +443,7 @@ mod tests {
 
     #[test]
     fn sky_beside_a_surface_takes_the_sky_away_from_it() {
-        let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("scenes/cornell-box/scene.toml");
-        let scene = Scene::load(&path).unwrap();
+        let scene = cornell();
         // Columns 2 to 6 touch the bar at 4; the sky within two pixels of
         // them that touches nothing is columns 0, 1, 7 and 8.
         let mut image = bars(&scene, 11, &[4]);

@@ -157,7 +157,7 @@ impl Base {
                 scene.objects.len()
             );
         }
-        super::lights::unmix(scene, &mut img);
+        super::lights::unmix_beside_lights(scene, &mut img);
         let brightest = img
             .radiance
             .par_iter()

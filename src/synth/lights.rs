@@ -127,26 +127,18 @@ pub fn trace(
     count
 }
 
-/// Gives base pixels that mix what reprojection would carry apart the
-/// radiance of a pure neighbour; returns how many changed.
+/// Gives base pixels beside a light the radiance of their own surface
+/// away from it; returns how many changed.
 ///
 /// A base pixel's radiance is the mean over its area, its point the one
-/// its centre ray meets, and reprojection moves the whole mean with that
-/// point. Two mixtures land far from where they belong:
-/// - Beside a light the mean holds part of the light. With parallax it
-///   lands on a wall away from the frame's own view of the light, where
-///   [`trace`] (which mends the frame's pixels at and beside lights) does
-///   not reach. Such a pixel takes the nearest pixel within [`REACH`] of
-///   the same object and face that no light touches.
-/// - A pixel whose centre ray meets nothing but whose area holds part of a
-///   surface (a window's bar against the empty outside) is projected as a
-///   direction, at infinity, so the surface's light lands wherever that
-///   direction falls in the frame: speckles over a window. Such a pixel
-///   takes the nearest pixel within [`REACH`] that shows only sky around
-///   it.
-///
-/// A pixel with no such neighbour keeps its value.
-pub fn unmix(scene: &Scene, image: &mut RangeImage) -> usize {
+/// its centre ray meets. Beside a light the mean holds part of the light,
+/// and reprojection carries it to wherever that point lands in the frame:
+/// with parallax, on a wall away from the frame's own view of the light,
+/// where [`trace`] (which mends the frame's pixels at and beside lights)
+/// does not reach. Such a pixel takes the nearest pixel within [`REACH`]
+/// of the same object and face that no light touches; a pixel without
+/// one keeps its value.
+pub fn unmix_beside_lights(scene: &Scene, image: &mut RangeImage) -> usize {
     let (w, h) = (image.width as usize, image.height as usize);
     let emissive = emissive(scene);
     let ids = &image.object_id;
@@ -154,6 +146,9 @@ pub fn unmix(scene: &Scene, image: &mut RangeImage) -> usize {
         .par_iter()
         .map(|&id| emissive.get(id as usize).copied().unwrap_or(false))
         .collect();
+    if !on_light.contains(&true) {
+        return 0;
+    }
     let interior = interior(ids, w, h);
     let lit = dilate(&on_light, w, h);
     let around = Around {
@@ -167,22 +162,13 @@ pub fn unmix(scene: &Scene, image: &mut RangeImage) -> usize {
     };
     let values: Vec<(usize, Vec3)> = (0..ids.len())
         .into_par_iter()
+        .filter(|&k| lit[k] && !on_light[k] && ids[k] != NO_HIT)
         .filter_map(|k| {
             let (sx, sy) = ((k % w) as f32 + 0.5, (k / w) as f32 + 0.5);
-            let j = if ids[k] == NO_HIT {
-                if interior[k] {
-                    return None;
-                }
-                around.best(NO_HIT, Vec3::ZERO, sx, sy, |j| interior[j])?
-            } else {
-                if !lit[k] || on_light[k] {
-                    return None;
-                }
-                let normal = image.normal[k];
-                around.best(ids[k], normal, sx, sy, |j| {
-                    !lit[j] && image.normal[j].dot(normal).abs() >= FACE_COS
-                })?
-            };
+            let normal = image.normal[k];
+            let j = around.best(ids[k], normal, sx, sy, |j| {
+                !lit[j] && image.normal[j].dot(normal).abs() >= FACE_COS
+            })?;
             Some((k, image.radiance[j]))
         })
         .collect();
@@ -335,37 +321,25 @@ mod tests {
     use crate::camera::{Camera, Projection};
     use crate::image::RangeMeta;
 
-    fn cornell() -> Scene {
-        let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("scenes/cornell-box/scene.toml");
-        Scene::load(&path).unwrap()
-    }
-
-    /// An empty range image `width` pixels wide and 8 high, looking along
-    /// `forward`.
-    fn blank(forward: Vec3, up: Vec3, width: u32) -> RangeImage {
-        let camera = Camera::looking(
-            Vec3::ZERO,
-            forward,
-            up,
-            Projection::Perspective { vfov_deg: 40.0 },
-            width,
-            8,
-        )
-        .unwrap();
-        RangeImage::empty(RangeMeta {
-            camera,
-            time: 0.0,
-            scene: String::new(),
-        })
-    }
-
     /// An 8×8 view of the Cornell box's ceiling (radiance 1) with the light
     /// (40) on a 2×2 square in the middle; the ring of pixels around the
     /// light holds a mixture of both (10).
     fn ceiling_with_a_light(scene: &Scene) -> RangeImage {
         let id = |name: &str| scene.objects.iter().position(|o| o.name == name).unwrap() as u32;
-        let mut image = blank(Vec3::Y, Vec3::Z, 8);
+        let camera = Camera::looking(
+            Vec3::ZERO,
+            Vec3::Y,
+            Vec3::Z,
+            Projection::Perspective { vfov_deg: 40.0 },
+            8,
+            8,
+        )
+        .unwrap();
+        let mut image = RangeImage::empty(RangeMeta {
+            camera,
+            time: 0.0,
+            scene: String::new(),
+        });
         for k in 0..64 {
             let (x, y) = (k % 8, k / 8);
             let (on, beside) = (
@@ -388,10 +362,12 @@ mod tests {
 
     #[test]
     fn base_pixels_beside_a_light_take_their_surface_away_from_it() {
-        let scene = cornell();
+        let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes/cornell-box/scene.toml");
+        let scene = Scene::load(&path).unwrap();
         let mut image = ceiling_with_a_light(&scene);
         let before = image.clone();
-        assert_eq!(unmix(&scene, &mut image), 12);
+        assert_eq!(unmix_beside_lights(&scene, &mut image), 12);
         for k in 0..64 {
             let want = if before.radiance[k].x == 10.0 {
                 1.0
@@ -407,7 +383,7 @@ mod tests {
         let back = scene.objects.iter().position(|o| o.name == "back").unwrap() as u32;
         image.object_id[2 * 8 + 2] = back;
         image.normal[5 * 8 + 5] = Vec3::Z;
-        assert_eq!(unmix(&scene, &mut image), 10);
+        assert_eq!(unmix_beside_lights(&scene, &mut image), 10);
         assert_eq!(image.radiance[2 * 8 + 2], Vec3::splat(10.0));
         assert_eq!(image.radiance[5 * 8 + 5], Vec3::splat(10.0));
 
@@ -418,45 +394,7 @@ mod tests {
             *id = ceiling;
         }
         let before = image.clone();
-        assert_eq!(unmix(&scene, &mut image), 0);
-        assert_eq!(image.radiance, before.radiance);
-    }
-
-    /// A base of the empty outside crossed by window bars one pixel wide
-    /// (radiance 1); the sky beside a bar holds part of it (0.5).
-    fn bars(scene: &Scene, width: usize, at: &[usize]) -> RangeImage {
-        let back = scene.objects.iter().position(|o| o.name == "back").unwrap() as u32;
-        let mut image = blank(Vec3::Z, Vec3::Y, width as u32);
-        for k in 0..width * 8 {
-            let x = k % width;
-            if at.contains(&x) {
-                image.object_id[k] = back;
-                image.normal[k] = -Vec3::Z;
-                image.distance[k] = 1.0;
-                image.radiance[k] = Vec3::ONE;
-            } else if at.iter().any(|&b| b.abs_diff(x) == 1) {
-                image.radiance[k] = Vec3::splat(0.5);
-            }
-        }
-        image
-    }
-
-    #[test]
-    fn sky_beside_a_surface_takes_the_sky_away_from_it() {
-        let scene = cornell();
-        // Columns 2 to 6 touch the bar at 4; the sky within two pixels of
-        // them that touches nothing is columns 0, 1, 7 and 8.
-        let mut image = bars(&scene, 11, &[4]);
-        assert_eq!(unmix(&scene, &mut image), 4 * 8);
-        for k in 0..11 * 8 {
-            let want = if k % 11 == 4 { 1.0 } else { 0.0 };
-            assert_eq!(image.radiance[k], Vec3::splat(want), "pixel {k}");
-        }
-        // Between bars four pixels apart no sky pixel is clear of both:
-        // everything keeps its value.
-        let mut image = bars(&scene, 9, &[2, 6]);
-        let before = image.clone();
-        assert_eq!(unmix(&scene, &mut image), 0);
+        assert_eq!(unmix_beside_lights(&scene, &mut image), 0);
         assert_eq!(image.radiance, before.radiance);
     }
 }

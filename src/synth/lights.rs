@@ -51,11 +51,7 @@ pub fn trace(
     let emissive = emissive(scene);
     let emits = |id: u32| emissive.get(id as usize).copied().unwrap_or(false);
     let interior = interior(ids, w, h);
-    let lit: Vec<bool> = dilate(
-        &ids.par_iter().map(|&id| emits(id)).collect::<Vec<_>>(),
-        w,
-        h,
-    );
+    let lit = dilate(&light_pixels(&emissive, ids), w, h);
     let traced: Vec<usize> = (0..ids.len()).into_par_iter().filter(|&k| lit[k]).collect();
     let shading = SurfaceShading::new(scene, engine, t);
     let camera = image.meta.camera;
@@ -142,10 +138,7 @@ pub fn unmix_beside_lights(scene: &Scene, image: &mut RangeImage) -> usize {
     let (w, h) = (image.width as usize, image.height as usize);
     let emissive = emissive(scene);
     let ids = &image.object_id;
-    let on_light: Vec<bool> = ids
-        .par_iter()
-        .map(|&id| emissive.get(id as usize).copied().unwrap_or(false))
-        .collect();
+    let on_light = light_pixels(&emissive, ids);
     if !on_light.contains(&true) {
         return 0;
     }
@@ -177,6 +170,13 @@ pub fn unmix_beside_lights(scene: &Scene, image: &mut RangeImage) -> usize {
         image.radiance[k] = c;
     }
     count
+}
+
+/// Per pixel: whether it shows an object that `emissive` marks.
+fn light_pixels(emissive: &[bool], ids: &[u32]) -> Vec<bool> {
+    ids.par_iter()
+        .map(|&id| emissive.get(id as usize).copied().unwrap_or(false))
+        .collect()
 }
 
 /// Per pixel: whether its 3×3 neighbourhood is free of changes of

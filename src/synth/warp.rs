@@ -7,6 +7,11 @@
 //! The frame is cut into bands of rows, one rayon task each; every task
 //! goes through the tiles of every pass whose projected bounds reach its
 //! rows, in pass order, so the result does not depend on the thread count.
+//! A tile's pixels are projected once a frame ([`prepare_tile`]), by the
+//! first band that needs them when several do, and deposited by each band
+//! into its own rows ([`deposit_splats`]).
+
+use std::sync::OnceLock;
 
 use glam::{Affine3A, Vec2, Vec3};
 use half::{f16, slice::HalfFloatSliceExt};
@@ -427,16 +432,22 @@ fn pixel_angle(c: &Camera) -> f32 {
     }
 }
 
-/// A projected base pixel.
+/// A projected base pixel: what its neighbours' footprints and depth
+/// tests read, small so that a tile's projections stay in the core's
+/// fastest cache.
 #[derive(Clone, Copy)]
 struct Projected {
     px: Vec2,
     z: f32,
-    /// The world point at the frame's time (a direction for sky).
-    point: Vec3,
-    sky: bool,
+    /// [`SKY`] for a direction.
     object: u32,
     primitive: u32,
+}
+
+impl Projected {
+    fn sky(&self) -> bool {
+        self.object == SKY
+    }
 }
 
 /// Projects every pass into `buffer` (`width * height`, row-major),
@@ -453,8 +464,7 @@ pub fn warp(
     debug_assert_eq!(buffer.len(), (w * h) as usize);
     let band = (h / 8).max(16);
     let bands = h.div_ceil(band) as usize;
-    // Every (pass, tile) that may reach each band, in pass order.
-    let mut work: Vec<Vec<(u32, u32, Reach)>> = vec![Vec::new(); bands];
+    // Every (pass, tile) that may reach the frame, in pass order.
     let lists: Vec<Vec<(u32, u32, Reach)>> = passes
         .par_iter()
         .enumerate()
@@ -485,44 +495,80 @@ pub fn warp(
             list
         })
         .collect();
-    for &(i, t, reach) in lists.iter().flatten() {
+    // A tile reaching several bands is prepared once, by the first band
+    // that needs it, into a slot the others read: projecting it again for
+    // every band cost a third more than projecting it once.
+    let items: Vec<(u32, u32, Reach)> = lists.into_iter().flatten().collect();
+    let mut work: Vec<Vec<(usize, Option<usize>)>> = vec![Vec::new(); bands];
+    let mut slots = 0;
+    for (n, &(_, _, reach)) in items.iter().enumerate() {
         let (a, b) = reach.rows;
         let (first, last) = ((a / band) as usize, ((b - 1) / band) as usize);
-        for items in work.iter_mut().take(last + 1).skip(first) {
-            items.push((i, t, reach));
+        let slot = (last > first).then(|| {
+            slots += 1;
+            slots - 1
+        });
+        for band_items in &mut work[first..=last] {
+            band_items.push((n, slot));
         }
     }
+    let prepared: Vec<OnceLock<Vec<Splat>>> = (0..slots).map(|_| OnceLock::new()).collect();
     let cull = settings.culls();
     buffer
         .par_chunks_mut((band * w) as usize)
         .zip(work.par_iter())
         .enumerate()
-        .map(|(k, (rows, items))| {
+        .map(|(k, (rows, band_items))| {
             let y0 = k as u32 * band;
             SCRATCH.with_borrow_mut(|scratch| {
                 // Kept by the thread from band to band and frame to frame:
                 // fresh pages for every band cost more than projecting it.
                 let n = rows.len();
-                scratch.hot.clear();
-                scratch.hot.resize(n, Hot::default());
-                scratch.alpha.clear();
-                scratch
-                    .alpha
-                    .resize(if settings.alpha { n } else { 0 }, 0.0);
-                scratch.hidden = 0;
-                for &(i, t, reach) in items {
+                let Scratch {
+                    projected,
+                    layers,
+                    splats,
+                    hot,
+                    alpha,
+                } = scratch;
+                hot.clear();
+                hot.resize(n, Hot::default());
+                alpha.clear();
+                alpha.resize(if settings.alpha { n } else { 0 }, 0.0);
+                let mut band = Band {
+                    y0,
+                    width: w,
+                    hot,
+                    alpha,
+                    hidden: 0,
+                };
+                for &(item, slot) in band_items {
+                    let (i, t, reach) = items[item];
                     let pass = &passes[i as usize];
-                    if cull && hidden(&scratch.hot, w, y0, &reach, settings.tolerance) {
+                    if cull && hidden(band.hot, w, y0, &reach, settings.tolerance) {
                         let (tile, base) = (&pass.base.tiles[t as usize], pass.base);
                         let side = |at: u32, n: u32| ((at + TILE).min(n) - at) as usize;
-                        scratch.hidden +=
-                            side(tile.x0, base.width()) * side(tile.y0, base.height());
+                        band.hidden += side(tile.x0, base.width()) * side(tile.y0, base.height());
                         continue;
                     }
-                    splat_tile(target, (i, pass), t as usize, settings, y0, scratch);
+                    let mut prepare = |out: &mut Vec<Splat>| {
+                        prepare_tile(target, pass, t as usize, settings, projected, layers, out)
+                    };
+                    let tile_splats: &[Splat] = match slot {
+                        Some(slot) => prepared[slot].get_or_init(|| {
+                            let mut out = Vec::new();
+                            prepare(&mut out);
+                            out
+                        }),
+                        None => {
+                            prepare(splats);
+                            splats
+                        }
+                    };
+                    deposit_splats(target, (i, pass), tile_splats, settings, &mut band);
                 }
-                resolve(passes, &scratch.hot, &scratch.alpha, rows);
-                scratch.hidden
+                resolve(passes, band.hot, band.alpha, rows);
+                band.hidden
             })
         })
         .sum()
@@ -592,39 +638,88 @@ fn resolve(passes: &[Pass], hot: &[Hot], alpha: &[f32], rows: &mut [Accum]) {
     }
 }
 
-/// Projects the tile's pixels (and the row and column after it) and
-/// deposits each pixel's sample in the band of rows `y0..` held by the
-/// scratch's pixels.
-fn splat_tile(
+/// A base pixel projected into the frame, with everything its deposits
+/// need that does not depend on the band they land in.
+#[derive(Clone, Copy)]
+struct Splat {
+    px: Vec2,
+    z: f32,
+    /// How the depth changes across the frame, so that the z-test compares
+    /// depths at pixel centres: a surface seen at a grazing angle changes
+    /// depth by more than the tolerance within one pixel, and depths taken
+    /// where the samples fall would let the nearer part of every pixel win.
+    grad: Vec2,
+    /// The footprint's sides; zero where the sample lands on one pixel.
+    sides: [Vec2; 2],
+    /// The world point at the frame's time (a direction for sky).
+    point: Vec3,
+    /// Radiance (blended with the twin's where it carries it), the weight
+    /// in time and the time value it stands for.
+    radiance: Vec3,
+    in_time: f32,
+    alpha: f32,
+    pixel: u32,
+    sky: bool,
+}
+
+/// The band of frame rows a task deposits into.
+struct Band<'a> {
+    y0: u32,
+    width: u32,
+    hot: &'a mut [Hot],
+    alpha: &'a mut [f32],
+    /// Base pixels left out by nearest-first blending.
+    hidden: usize,
+}
+
+impl Band<'_> {
+    /// Adds `sample` (of `s`) to pixel `(px, py)` of the band (the caller
+    /// keeps to the band), at the depth of `s` at the pixel's centre.
+    #[inline(always)]
+    fn deposit(
+        &mut self,
+        s: &Splat,
+        sample: &Sample,
+        (px, py): (i64, i64),
+        area: f32,
+        covers: bool,
+        settings: &WarpSettings,
+    ) {
+        let j = ((py as u32 - self.y0) * self.width + px as u32) as usize;
+        let centre = Vec2::new(px as f32 + 0.5, py as f32 + 0.5);
+        let z = if s.sky {
+            s.z
+        } else {
+            (s.z + s.grad.dot(centre - s.px)).clamp(0.5 * s.z, 2.0 * s.z)
+        };
+        sample.deposit(
+            &mut self.hot[j],
+            self.alpha.get_mut(j),
+            z,
+            area,
+            covers,
+            settings.tolerance,
+            settings.blend,
+        );
+    }
+}
+
+/// Projects the tile's pixels (and a ring of their neighbours, which give
+/// the footprints' sides) into `out`.
+fn prepare_tile(
     target: &Target,
-    (index, pass): (u32, &Pass),
+    pass: &Pass,
     t: usize,
     settings: &WarpSettings,
-    y0: u32,
-    scratch: &mut Scratch,
+    scratch: &mut Vec<Option<Projected>>,
+    layers: &mut [Vec<f32>; 2],
+    out: &mut Vec<Splat>,
 ) {
+    out.clear();
     let base = pass.base;
     let tile = &base.tiles[t];
     let all_shared = pass.tile_shared(t);
     let (bw, bh) = (base.width(), base.height());
-    let fw = target.camera.width;
-    let Scratch {
-        projected: scratch,
-        layers,
-        hot: rows,
-        alpha: alphas,
-        hidden,
-    } = scratch;
-    let cull = settings.culls();
-    // Nearest first, a sample that only overlaps a pixel never changes a
-    // covered one, and an uncovered pixel is a hole: only covering
-    // deposits count, whatever the filter.
-    let filter = match settings.blend {
-        Blend::Nearest => Filter::Cover,
-        Blend::Average => settings.filter,
-    };
-    let band_rows = rows.len() as u32 / fw;
-    let y1 = y0 + band_rows;
     // The tile's pixels with a ring of their neighbours: a footprint's side
     // comes from the neighbour after the pixel or, where that one lies
     // across a depth break, from the one before it.
@@ -632,6 +727,11 @@ fn splat_tile(
     let x_end = (tile.x0 + TILE + 1).min(bw);
     let y_end = (tile.y0 + TILE + 1).min(bh);
     let sw = x_end - xs;
+    // A point at the frame's time.
+    let moved = |o: u32, p: Vec3| match pass.moves.get(o as usize).copied().flatten() {
+        Some(m) => m.transform_point3(p),
+        None => p,
+    };
     scratch.clear();
     for y in ys..y_end {
         for x in xs..x_end {
@@ -645,22 +745,14 @@ fn splat_tile(
                     target.direction(p).map(|px| Projected {
                         px,
                         z: SKY_Z,
-                        point: p,
-                        sky: true,
-                        object: o,
+                        object: SKY,
                         primitive: SKY,
                     })
                 }
             } else {
-                let q = match pass.moves.get(o as usize).copied().flatten() {
-                    Some(m) => m.transform_point3(p),
-                    None => p,
-                };
-                target.point(q).map(|(px, z)| Projected {
+                target.point(moved(o, p)).map(|(px, z)| Projected {
                     px,
                     z,
-                    point: q,
-                    sky: false,
                     object: o,
                     primitive: base.primitive[k],
                 })
@@ -697,12 +789,11 @@ fn splat_tile(
     // Neighbours on one triangle are one plane, however steeply the base
     // saw it; others must agree in depth (pinterp's test).
     let agrees = |a: &Projected, b: &Projected| {
-        a.sky == b.sky
-            && (a.sky
+        a.sky() == b.sky()
+            && (a.sky()
                 || (a.object == b.object && a.primitive == b.primitive)
                 || (a.z - b.z).abs() <= 2.0 * eps * a.z)
     };
-    let cam = target.camera.position;
     for y in tile.y0..(tile.y0 + TILE).min(bh) {
         for x in tile.x0..(tile.x0 + TILE).min(bw) {
             let li = ((y - ys) * sw + (x - xs)) as usize;
@@ -732,10 +823,7 @@ fn splat_tile(
                 step(1).or_else(|| step(-1))
             };
             let (n1, n2) = (neighbour(true), neighbour(false));
-            let (fx, fy) = (floor(s.px.x), floor(s.px.y));
-            let in_band =
-                |px: i64, py: i64| px >= 0 && py >= y0 as i64 && px < fw as i64 && py < y1 as i64;
-            let footprint = if settings.splat {
+            let sides = if settings.splat {
                 let short = |e: Vec2| e.abs().max_element() <= MAX_SPLAT;
                 // The footprint is centred on the pixel's projection, so that a
                 // base pixel projected into its own camera covers exactly its
@@ -744,62 +832,26 @@ fn splat_tile(
                 // quarter, or, for a lone pixel, the base pixel's own size:
                 // a frame pixel there would widen every thin foreground object
                 // over the gaps beside it.
-                let (e1, e2) = match (
+                match (
                     n1.map(|n| n.0).filter(|e| short(*e)),
                     n2.map(|n| n.0).filter(|e| short(*e)),
                 ) {
-                    (Some(a), Some(b)) => (a, b),
-                    (Some(a), None) => (a, a.perp()),
-                    (None, Some(b)) => (-b.perp(), b),
+                    (Some(a), Some(b)) => [a, b],
+                    (Some(a), None) => [a, a.perp()],
+                    (None, Some(b)) => [-b.perp(), b],
                     (None, None) => {
-                        let side = if s.sky {
-                            target.pixel_side(base, base.camera.position + s.point, 1.0)
+                        let side = if s.sky() {
+                            target.pixel_side(base, base.camera.position + base.points[k], 1.0)
                         } else {
                             target.pixel_side(base, base.points[k], s.z)
                         };
                         let side = side.min(MAX_SPLAT);
-                        (Vec2::X * side, Vec2::Y * side)
+                        [Vec2::X * side, Vec2::Y * side]
                     }
-                };
-                let det = e1.perp_dot(e2);
-                (det.abs() >= 1e-6).then(|| {
-                    let extent = e1.abs() + e2.abs();
-                    let (lo, hi) = (s.px - 0.5 * extent, s.px + 0.5 * extent);
-                    let (rows, cols) = match filter {
-                        Filter::Box => (
-                            (floor(lo.y).max(y0 as i64), ceil(hi.y).min(y1 as i64) - 1),
-                            (floor(lo.x).max(0), ceil(hi.x).min(fw as i64) - 1),
-                        ),
-                        // Only pixels whose centres the bounds hold (and
-                        // the pixel under the sample) can be covered.
-                        Filter::Cover => (
-                            (
-                                ceil(lo.y - 0.5).min(fy).max(y0 as i64),
-                                floor(hi.y - 0.5).max(fy).min(y1 as i64 - 1),
-                            ),
-                            (
-                                ceil(lo.x - 0.5).min(fx).max(0),
-                                floor(hi.x - 0.5).max(fx).min(fw as i64 - 1),
-                            ),
-                        ),
-                    };
-                    (e1, e2, det, extent, rows, cols)
-                })
+                }
             } else {
-                None
+                [Vec2::ZERO; 2]
             };
-            // What lands outside the band (the band's neighbours project
-            // the tiles they share with it too) costs no more than this.
-            match footprint {
-                Some((.., (ya, yb), (xa, xb))) if ya > yb || xa > xb => continue,
-                None if !in_band(fx, fy) => continue,
-                _ => {}
-            }
-            // The depth gradient across the frame, so that the z-test
-            // compares depths at the pixel centre: a surface seen at a
-            // grazing angle changes depth by more than the tolerance
-            // within one pixel, and depths taken where the samples fall
-            // would let the nearer part of every pixel win.
             let grad = match (n1, n2) {
                 (Some((e1, d1)), Some((e2, d2))) if e1.perp_dot(e2).abs() > 1e-6 => {
                     let det = e1.perp_dot(e2);
@@ -809,22 +861,6 @@ fn splat_tile(
                     e * (d / e.length_squared())
                 }
                 _ => Vec2::ZERO,
-            };
-            // Where the pixels it could decide already hold nearer or
-            // equal samples of earlier bases, nearest-first blending keeps
-            // them: the rest of the sample's work would change nothing.
-            if cull && hidden_sample(&s, grad, footprint.as_ref(), (fx, fy), rows, (fw, y0), eps) {
-                *hidden += 1;
-                continue;
-            }
-            // Weight: how close the base's ray is to the frame's ray,
-            // 1/sin of the angle between them (sky: the same direction).
-            let weight = if s.sky {
-                MAX_WEIGHT
-            } else {
-                let (a, b) = (base.points[k] - base.camera.position, s.point - cam);
-                let sin2 = a.cross(b).length_squared() / (a.length_squared() * b.length_squared());
-                (1.0 / sin2).sqrt().min(MAX_WEIGHT)
             };
             let mut radiance = layer(rad, x, y, base.scale);
             let (mut in_time, mut alpha) = (pass.weight, pass.alpha);
@@ -847,63 +883,151 @@ fn splat_tile(
                     in_time = sum;
                 }
             }
-            let sample = Sample {
-                weight: weight * in_time,
+            out.push(Splat {
+                px: s.px,
+                z: s.z,
+                grad,
+                sides,
+                point: if s.sky() {
+                    base.points[k]
+                } else {
+                    moved(s.object, base.points[k])
+                },
                 radiance,
+                in_time,
                 alpha,
                 pixel: k as u32,
-                tag: index << 1,
+                sky: s.sky(),
+            });
+        }
+    }
+}
+
+/// Deposits a tile's samples in the band's pixels.
+fn deposit_splats(
+    target: &Target,
+    (index, pass): (u32, &Pass),
+    splats: &[Splat],
+    settings: &WarpSettings,
+    band: &mut Band,
+) {
+    let base = pass.base;
+    let fw = target.camera.width;
+    let cull = settings.culls();
+    // Nearest first, a sample that only overlaps a pixel never changes a
+    // covered one, and an uncovered pixel is a hole: only covering
+    // deposits count, whatever the filter.
+    let filter = match settings.blend {
+        Blend::Nearest => Filter::Cover,
+        Blend::Average => settings.filter,
+    };
+    let y0 = band.y0;
+    let y1 = y0 + band.hot.len() as u32 / fw;
+    let eps = settings.tolerance;
+    let cam = target.camera.position;
+    let in_band = |px: i64, py: i64| px >= 0 && py >= y0 as i64 && px < fw as i64 && py < y1 as i64;
+    for s in splats {
+        let [e1, e2] = s.sides;
+        // Rows a pixel beyond the footprint's bounds cannot be reached
+        // (samples of a tile that other bands share mostly land there).
+        let reach = 0.5 * (e1.y.abs() + e2.y.abs()) + 1.0;
+        if s.px.y + reach < y0 as f32 || s.px.y - reach > y1 as f32 {
+            continue;
+        }
+        let (fx, fy) = (floor(s.px.x), floor(s.px.y));
+        let det = e1.perp_dot(e2);
+        let footprint = (det.abs() >= 1e-6).then(|| {
+            let extent = e1.abs() + e2.abs();
+            let (lo, hi) = (s.px - 0.5 * extent, s.px + 0.5 * extent);
+            let (rows, cols) = match filter {
+                Filter::Box => (
+                    (floor(lo.y).max(y0 as i64), ceil(hi.y).min(y1 as i64) - 1),
+                    (floor(lo.x).max(0), ceil(hi.x).min(fw as i64) - 1),
+                ),
+                // Only pixels whose centres the bounds hold (and the pixel
+                // under the sample) can be covered.
+                Filter::Cover => (
+                    (
+                        ceil(lo.y - 0.5).min(fy).max(y0 as i64),
+                        floor(hi.y - 0.5).max(fy).min(y1 as i64 - 1),
+                    ),
+                    (
+                        ceil(lo.x - 0.5).min(fx).max(0),
+                        floor(hi.x - 0.5).max(fx).min(fw as i64 - 1),
+                    ),
+                ),
             };
-            let mut deposit = |px: i64, py: i64, area: f32, covers: bool| {
-                if in_band(px, py) {
-                    let j = ((py as u32 - y0) * fw + px as u32) as usize;
-                    let a = &mut rows[j];
-                    let centre = Vec2::new(px as f32 + 0.5, py as f32 + 0.5);
-                    let z = if s.sky {
-                        s.z
-                    } else {
-                        (s.z + grad.dot(centre - s.px)).clamp(0.5 * s.z, 2.0 * s.z)
-                    };
-                    sample.deposit(a, alphas.get_mut(j), z, area, covers, eps, settings.blend);
-                }
-            };
-            let Some((e1, e2, det, extent, (ya, yb), (xa, xb))) = footprint else {
-                deposit(fx, fy, 1.0, true);
-                continue;
-            };
-            let origin = s.px - 0.5 * (e1 + e2);
-            // Area weights: each frame pixel averages the base pixels over
-            // it by how much of it they cover (a box filter of the base's
-            // pixels, as the reference's pixels integrate the scene), not
-            // by whose centres fall in it, which shifts edges by up to half
-            // a pixel. The overlap is that of an axis-aligned box with the
-            // footprint's area and the proportions of its bounds.
-            let half = 0.5 * extent * (det.abs() / (extent.x * extent.y)).sqrt();
-            let (bl, bh) = (s.px - half, s.px + half);
-            let overlap =
-                |p: i64, l: f32, h: f32| (h.min(p as f32 + 1.0) - l.max(p as f32)).max(0.0);
-            let inv = 1.0 / det;
-            for py in ya..=yb {
-                let oy = overlap(py, bl.y, bh.y);
-                for px in xa..=xb {
-                    let c = Vec2::new(px as f32 + 0.5, py as f32 + 0.5) - origin;
-                    // Parallelogram coordinates, half-open so that each
-                    // pixel centre is covered by one footprint of a surface.
-                    let a = c.perp_dot(e2) * inv;
-                    let b = e1.perp_dot(c) * inv;
-                    // The pixel under the sample has it whole where the
-                    // footprint is smaller than a pixel.
-                    let covers =
-                        (0.0..1.0).contains(&a) && (0.0..1.0).contains(&b) || (px, py) == (fx, fy);
-                    let area = oy * overlap(px, bl.x, bh.x);
-                    // Slivers below the rounding of positions are no
-                    // overlap; a covering footprint's sample counts even
-                    // where the box approximating it misses the pixel.
-                    if covers {
-                        deposit(px, py, area.max(MIN_AREA), true);
-                    } else if filter == Filter::Box && area > MIN_AREA {
-                        deposit(px, py, area, false);
-                    }
+            (e1, e2, det, extent, rows, cols)
+        });
+        // What lands outside the band (the band's neighbours deposit the
+        // tiles they share with it too) costs no more than this.
+        match footprint {
+            Some((.., (ya, yb), (xa, xb))) if ya > yb || xa > xb => continue,
+            None if !in_band(fx, fy) => continue,
+            _ => {}
+        }
+        // Where the pixels it could decide already hold nearer or equal
+        // samples of earlier bases, nearest-first blending keeps them: the
+        // rest of the sample's work would change nothing.
+        if cull && hidden_sample(s, footprint.as_ref(), (fx, fy), band.hot, (fw, y0), eps) {
+            band.hidden += 1;
+            continue;
+        }
+        // Weight: how close the base's ray is to the frame's ray, 1/sin of
+        // the angle between them (sky: the same direction).
+        let weight = if s.sky {
+            MAX_WEIGHT
+        } else {
+            let k = s.pixel as usize;
+            let (a, b) = (base.points[k] - base.camera.position, s.point - cam);
+            let sin2 = a.cross(b).length_squared() / (a.length_squared() * b.length_squared());
+            (1.0 / sin2).sqrt().min(MAX_WEIGHT)
+        };
+        let sample = Sample {
+            weight: weight * s.in_time,
+            radiance: s.radiance,
+            alpha: s.alpha,
+            pixel: s.pixel,
+            tag: index << 1,
+        };
+        let mut deposit = |px: i64, py: i64, area: f32, covers: bool| {
+            band.deposit(s, &sample, (px, py), area, covers, settings);
+        };
+        let Some((e1, e2, det, extent, (ya, yb), (xa, xb))) = footprint else {
+            deposit(fx, fy, 1.0, true);
+            continue;
+        };
+        let origin = s.px - 0.5 * (e1 + e2);
+        // Area weights: each frame pixel averages the base pixels over it
+        // by how much of it they cover (a box filter of the base's pixels,
+        // as the reference's pixels integrate the scene), not by whose
+        // centres fall in it, which shifts edges by up to half a pixel. The
+        // overlap is that of an axis-aligned box with the footprint's area
+        // and the proportions of its bounds.
+        let half = 0.5 * extent * (det.abs() / (extent.x * extent.y)).sqrt();
+        let (bl, bh) = (s.px - half, s.px + half);
+        let overlap = |p: i64, l: f32, h: f32| (h.min(p as f32 + 1.0) - l.max(p as f32)).max(0.0);
+        let inv = 1.0 / det;
+        for py in ya..=yb {
+            let oy = overlap(py, bl.y, bh.y);
+            for px in xa..=xb {
+                let c = Vec2::new(px as f32 + 0.5, py as f32 + 0.5) - origin;
+                // Parallelogram coordinates, half-open so that each pixel
+                // centre is covered by one footprint of a surface.
+                let a = c.perp_dot(e2) * inv;
+                let b = e1.perp_dot(c) * inv;
+                // The pixel under the sample has it whole where the
+                // footprint is smaller than a pixel.
+                let covers =
+                    (0.0..1.0).contains(&a) && (0.0..1.0).contains(&b) || (px, py) == (fx, fy);
+                let area = oy * overlap(px, bl.x, bh.x);
+                // Slivers below the rounding of positions are no overlap; a
+                // covering footprint's sample counts even where the box
+                // approximating it misses the pixel.
+                if covers {
+                    deposit(px, py, area.max(MIN_AREA), true);
+                } else if filter == Filter::Box && area > MIN_AREA {
+                    deposit(px, py, area, false);
                 }
             }
         }
@@ -911,15 +1035,14 @@ fn splat_tile(
 }
 
 /// Whether a sample's covering deposits (the pixels whose centres its
-/// footprint's bounds hold, and the pixel under it) would all meet pixels
-/// of the band (`hot`, rows from `y0`, `fw` wide) covered by samples it is
+/// footprint's bounds hold, and the pixel under it, both in the band) would
+/// all meet pixels of the band (`hot`, rows from `y0`, `fw` wide) covered by samples it is
 /// not nearer than by the tolerance: under nearest-first blending it then
 /// changes nothing (overlapping deposits never change a covered pixel).
 /// Its depth over the footprint is bounded by the footprint's corners,
 /// between which the depth is linear.
 fn hidden_sample(
-    s: &Projected,
-    grad: Vec2,
+    s: &Splat,
     footprint: Option<&Footprint>,
     (fx, fy): (i64, i64),
     hot: &[Hot],
@@ -933,33 +1056,21 @@ fn hidden_sample(
             z.clamp(0.5 * s.z, 2.0 * s.z)
         }
     };
-    let at = |c: Vec2| clamp(s.z + grad.dot(c - s.px));
+    let at = |c: Vec2| clamp(s.z + s.grad.dot(c - s.px));
     let centre = |px: i64, py: i64| Vec2::new(px as f32 + 0.5, py as f32 + 0.5);
+    // Under nearest-first blending a footprint's rows and columns are
+    // those of the covering filter, clipped to the band.
     let (mut low, rows, cols) = match footprint {
         None => (at(centre(fx, fy)), (fy, fy), (fx, fx)),
-        Some(&(e1, e2, _, extent, ..)) => {
-            let origin = s.px - 0.5 * (e1 + e2);
-            let corners = [origin, origin + e1, origin + e2, origin + e1 + e2];
-            let low = corners
-                .iter()
-                .fold(at(centre(fx, fy)), |m, &c| m.min(at(c)));
-            let (lo, hi) = (s.px - 0.5 * extent, s.px + 0.5 * extent);
-            (
-                low,
-                (ceil(lo.y - 0.5).min(fy), floor(hi.y - 0.5).max(fy)),
-                (ceil(lo.x - 0.5).min(fx), floor(hi.x - 0.5).max(fx)),
-            )
+        Some(&(e1, e2, _, _, rows, cols)) => {
+            // The depth is linear over the footprint, least at a corner.
+            let (g1, g2) = (s.grad.dot(e1), s.grad.dot(e2));
+            let corner = s.z - 0.5 * (g1 + g2) + g1.min(0.0) + g2.min(0.0);
+            (at(centre(fx, fy)).min(clamp(corner)), rows, cols)
         }
     };
     // Rounding of the depths at pixel centres against the corners'.
     low *= 1.0 - 1e-5;
-    let y1 = y0 as i64 + (hot.len() as u32 / fw) as i64;
-    let rows = (rows.0.max(y0 as i64), rows.1.min(y1 - 1));
-    let cols = (cols.0.max(0), cols.1.min(fw as i64 - 1));
-    if rows.0 > rows.1 || cols.0 > cols.1 {
-        // Nothing it decides lies in the band.
-        return true;
-    }
     (rows.0..=rows.1).all(|py| {
         let row = (py - y0 as i64) as usize * fw as usize;
         hot[row + cols.0 as usize..=row + cols.1 as usize]
@@ -990,11 +1101,11 @@ struct Scratch {
     /// Radiance and the twin's radiance of the tile's pixels, as f32
     /// triples.
     layers: [Vec<f32>; 2],
+    /// The samples of a tile that reaches one band.
+    splats: Vec<Splat>,
     /// The band's pixels, and their sums of `alpha` where asked for.
     hot: Vec<Hot>,
     alpha: Vec<f32>,
-    /// Base pixels of the band left out by nearest-first blending.
-    hidden: usize,
 }
 
 thread_local! {

@@ -66,10 +66,9 @@ pub fn trace(
     };
     let corners = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)];
     let full = hammersley(side * side);
-    // Mean radiance of rays through pixel `k` at `offsets`, and whether
-    // they all met one surface; `None` where part of the pixel lies
-    // outside a fisheye's circle.
-    let rays_through = |k: usize, offsets: &[(f32, f32)]| -> Option<(Vec3, bool)> {
+    // Rays through pixel `k` at `offsets` and what they hit; `None` where
+    // part of the pixel lies outside a fisheye's circle.
+    let rays_through = |k: usize, offsets: &[(f32, f32)]| -> Option<(Vec<Ray>, Vec<Option<Hit>>)> {
         let (x, y) = ((k % w) as f32, (k / w) as f32);
         let rays: Vec<Ray> = offsets
             .iter()
@@ -77,10 +76,13 @@ pub fn trace(
             .collect::<Option<_>>()?;
         let mut hits = vec![None; rays.len()];
         engine.intersect_batch(&rays, &mut hits);
-        let object = |hit: &Option<Hit>| hit.map_or(NO_HIT, |h| h.object);
-        let one = hits.iter().all(|hit| object(hit) == object(&hits[0]));
+        Some((rays, hits))
+    };
+    // Mean radiance of those rays.
+    let shade = |k: usize, offsets: &[(f32, f32)], rays: &[Ray], hits: &[Option<Hit>]| -> Vec3 {
+        let (x, y) = ((k % w) as f32, (k / w) as f32);
         let mut sum = Vec3::ZERO;
-        for ((&(dx, dy), ray), hit) in offsets.iter().zip(&rays).zip(&hits) {
+        for ((&(dx, dy), ray), hit) in offsets.iter().zip(rays).zip(hits) {
             let (sx, sy) = (x + dx, y + dy);
             sum += match hit {
                 Some(hit) if emits(hit.object) => {
@@ -106,14 +108,18 @@ pub fn trace(
                     .unwrap_or(radiance[k]),
             };
         }
-        Some((sum / rays.len() as f32, one))
+        sum / rays.len() as f32
     };
     let values: Vec<(usize, Vec3)> = traced
         .par_iter()
         .filter_map(|&k| {
-            let (_, one) = rays_through(k, &corners)?;
+            // The corners only tell whether the pixel shows one surface.
+            let (_, hits) = rays_through(k, &corners)?;
+            let object = |hit: &Option<Hit>| hit.map_or(NO_HIT, |h| h.object);
+            let one = hits.iter().all(|hit| object(hit) == object(&hits[0]));
             let offsets: &[(f32, f32)] = if one { &[(0.5, 0.5)] } else { &full };
-            Some((k, rays_through(k, offsets)?.0))
+            let (rays, hits) = rays_through(k, offsets)?;
+            Some((k, shade(k, offsets, &rays, &hits)))
         })
         .collect();
     let count = values.len();

@@ -139,7 +139,10 @@ impl Pass<'_> {
             && if o == SKY {
                 a.points[k] == b.points[k]
             } else {
-                self.moves.get(o as usize).copied().flatten().is_none()
+                self.moves
+                    .get(o as usize)
+                    .and_then(Option::as_ref)
+                    .is_none()
             }
     }
 
@@ -381,7 +384,7 @@ impl Target {
             add(self.reach(b, true));
         }
         for (o, b) in &tile.moving {
-            match moves.get(*o as usize).copied().flatten() {
+            match moves.get(*o as usize).and_then(Option::as_ref) {
                 Some(m) => {
                     let mut moved = Bounds {
                         lo: Vec3::splat(f32::INFINITY),
@@ -621,7 +624,7 @@ fn resolve(passes: &[Pass], hot: &[Hot], alpha: &[f32], rows: &mut [Accum]) {
         let base = pass.base;
         let k = h.pixel as usize;
         let (p, object) = (base.points[k], base.object[k]);
-        let point = match pass.moves.get(object as usize).copied().flatten() {
+        let point = match pass.moves.get(object as usize).and_then(Option::as_ref) {
             Some(m) => m.transform_point3(p),
             None => p,
         };
@@ -728,7 +731,7 @@ fn prepare_tile(
     let y_end = (tile.y0 + TILE + 1).min(bh);
     let sw = x_end - xs;
     // A point at the frame's time.
-    let moved = |o: u32, p: Vec3| match pass.moves.get(o as usize).copied().flatten() {
+    let moved = |o: u32, p: Vec3| match pass.moves.get(o as usize).and_then(Option::as_ref) {
         Some(m) => m.transform_point3(p),
         None => p,
     };

@@ -559,7 +559,7 @@ pub fn warp(
                     };
                     let tile_splats: &[Splat] = match slot {
                         Some(slot) => prepared[slot].get_or_init(|| {
-                            let mut out = Vec::new();
+                            let mut out = Vec::with_capacity((TILE * TILE) as usize);
                             prepare(&mut out);
                             out
                         }),
@@ -972,7 +972,7 @@ fn deposit_splats(
         // Where the pixels it could decide already hold nearer or equal
         // samples of earlier bases, nearest-first blending keeps them: the
         // rest of the sample's work would change nothing.
-        if cull && hidden_sample(s, footprint.as_ref(), (fx, fy), band.hot, (fw, y0), eps) {
+        if cull && hidden_sample(s, footprint.as_ref(), (fx, fy), band, eps) {
             band.hidden += 1;
             continue;
         }
@@ -1039,8 +1039,8 @@ fn deposit_splats(
 
 /// Whether a sample's covering deposits (the pixels whose centres its
 /// footprint's bounds hold, and the pixel under it, both in the band) would
-/// all meet pixels of the band (`hot`, rows from `y0`, `fw` wide) covered by samples it is
-/// not nearer than by the tolerance: under nearest-first blending it then
+/// all meet pixels of the band covered by samples it is not nearer than by
+/// the tolerance: under nearest-first blending it then
 /// changes nothing (overlapping deposits never change a covered pixel).
 /// Its depth over the footprint is bounded by the footprint's corners,
 /// between which the depth is linear.
@@ -1048,8 +1048,7 @@ fn hidden_sample(
     s: &Splat,
     footprint: Option<&Footprint>,
     (fx, fy): (i64, i64),
-    hot: &[Hot],
-    (fw, y0): (u32, u32),
+    band: &Band,
     eps: f32,
 ) -> bool {
     let clamp = |z: f32| {
@@ -1075,8 +1074,8 @@ fn hidden_sample(
     // Rounding of the depths at pixel centres against the corners'.
     low *= 1.0 - 1e-5;
     (rows.0..=rows.1).all(|py| {
-        let row = (py - y0 as i64) as usize * fw as usize;
-        hot[row + cols.0 as usize..=row + cols.1 as usize]
+        let row = (py - band.y0 as i64) as usize * band.width as usize;
+        band.hot[row + cols.0 as usize..=row + cols.1 as usize]
             .iter()
             .all(|a| a.covered() && low >= a.z * (1.0 - eps))
     })

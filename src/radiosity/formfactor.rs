@@ -77,10 +77,14 @@ pub fn point_to_polygon(x: Vec3, n: Vec3, poly: &Polygon) -> f32 {
     if c.len() < 3 {
         return 0.0;
     }
+    let mut r = [Vec3::ZERO; 4];
+    for (r, &c) in r.iter_mut().zip(c) {
+        *r = c - x;
+    }
+    let r = &r[..c.len()];
     let mut sum = 0.0f32;
-    for i in 0..c.len() {
-        let a = c[i] - x;
-        let b = c[(i + 1) % c.len()] - x;
+    for i in 0..r.len() {
+        let (a, b) = (r[i], r[(i + 1) % r.len()]);
         let cross = a.cross(b);
         let len = cross.length();
         if len.is_nan() || len <= 0.0 || len.is_infinite() {
@@ -135,12 +139,16 @@ fn angle(y: f32, x: f32) -> f32 {
 pub fn point_to_triangle_sides(x: Vec3, n: Vec3, src: [Vec3; 3]) -> [f32; 2] {
     let poly = Polygon::triangle(src);
     let d = src.map(|v| (v - x).dot(n));
-    // A side whose half-space holds no corner sees nothing: skip its clip.
+    // A side whose half-space holds no corner sees nothing, one that holds
+    // them all sees the whole triangle: only a source across the plane is
+    // clipped.
     let side = |sign: f32| {
-        if d.iter().any(|&di| di * sign > 0.0) {
-            point_to_polygon(x, n * sign, &poly.clip_above(x, n * sign))
-        } else {
+        if !d.iter().any(|&di| di * sign > 0.0) {
             0.0
+        } else if d.iter().all(|&di| di * sign >= 0.0) {
+            point_to_polygon(x, n * sign, &poly)
+        } else {
+            point_to_polygon(x, n * sign, &poly.clip_above(x, n * sign))
         }
     };
     [side(1.0), side(-1.0)]

@@ -39,8 +39,26 @@ pub struct Link {
     pub r: u32,
     pub s: u32,
     pub t: Transfer,
-    /// First of the link's shadow-ray outcomes in the solve's sample list.
+    /// First of the link's shadow-ray outcomes in the solve's sample list,
+    /// [`ALL_OPEN`] for a link none of whose rays was blocked.
     pub samples: u32,
+}
+
+/// The `samples` of a link whose rays all passed: its visible fractions
+/// are one whatever the sources' radiosities, so there is nothing to
+/// re-weigh and its outcomes are not kept (seven links in ten on the
+/// Cornell box).
+pub const ALL_OPEN: u32 = u32::MAX;
+
+impl Link {
+    /// The link with its outcomes `offset` further on in the sample list.
+    pub fn shifted(self, offset: u32) -> Self {
+        let samples = match self.samples {
+            ALL_OPEN => ALL_OPEN,
+            first => first + offset,
+        };
+        Self { samples, ..self }
+    }
 }
 
 /// One shadow ray's outcome, kept so that visibility can be re-weighed
@@ -94,37 +112,38 @@ pub struct Refiner<'a> {
 }
 
 impl Refiner<'_> {
-    /// Links `r` gathering from `s` (or, for `r == s`, everything within
-    /// `r`), down to where the oracle is satisfied.
-    pub fn refine(&mut self, h: &mut Hierarchy, r: u32, s: u32) {
-        if r == s {
-            if h.node(r).cluster {
-                let kids = h.split(r);
-                for &a in &kids {
-                    for &b in &kids {
-                        self.refine(h, a, b);
+    /// Links for each of `pairs` (`r` gathering from `s`, or for `r == s`
+    /// everything within `r`), down to where the oracle is satisfied.
+    ///
+    /// A level of pairs at a time: the verdicts, which evaluate form
+    /// factors, are judged in parallel on the hierarchy as it stands, and
+    /// only the splits, which add nodes to it, are made in order.
+    pub fn refine(&mut self, h: &mut Hierarchy, mut pairs: Vec<(u32, u32)>) {
+        while !pairs.is_empty() {
+            let verdicts: Vec<Option<(Verdict, Spread)>> = pairs
+                .par_iter()
+                .map(|&(r, s)| (r != s).then(|| self.verdict(h, r, s, false, None)))
+                .collect();
+            let mut next = Vec::new();
+            for (&(r, s), verdict) in pairs.iter().zip(verdicts) {
+                let Some((verdict, spread)) = verdict else {
+                    if h.node(r).cluster {
+                        let kids = h.split(r);
+                        next.extend(kids.iter().flat_map(|&a| kids.iter().map(move |&b| (a, b))));
                     }
+                    continue;
+                };
+                match verdict {
+                    Verdict::Drop => {}
+                    Verdict::Accept => self.pending.push((r, s, spread)),
+                    Verdict::Split => match self.which(h, r, s) {
+                        Some(true) => next.extend(h.split(r).into_iter().map(|c| (c, s))),
+                        Some(false) => next.extend(h.split(s).into_iter().map(|c| (r, c))),
+                        None => self.pending.push((r, s, spread)),
+                    },
                 }
             }
-            return;
-        }
-        let (verdict, spread) = self.verdict(h, r, s, false, None);
-        match verdict {
-            Verdict::Drop => {}
-            Verdict::Accept => self.pending.push((r, s, spread)),
-            Verdict::Split => match self.which(h, r, s) {
-                Some(true) => {
-                    for c in h.split(r) {
-                        self.refine(h, c, s);
-                    }
-                }
-                Some(false) => {
-                    for c in h.split(s) {
-                        self.refine(h, r, c);
-                    }
-                }
-                None => self.pending.push((r, s, spread)),
-            },
+            pairs = next;
         }
     }
 
@@ -146,19 +165,11 @@ impl Refiner<'_> {
             .collect()
     }
 
-    /// Replaces an existing link by finer pending pairs.
-    pub fn split_link(&mut self, h: &mut Hierarchy, r: u32, s: u32) {
+    /// The pairs that replace an existing link, for [`Self::refine`].
+    pub fn split_link(&self, h: &mut Hierarchy, r: u32, s: u32) -> Vec<(u32, u32)> {
         match self.which(h, r, s) {
-            Some(true) => {
-                for c in h.split(r) {
-                    self.refine(h, c, s);
-                }
-            }
-            _ => {
-                for c in h.split(s) {
-                    self.refine(h, r, c);
-                }
-            }
+            Some(true) => h.split(r).into_iter().map(|c| (c, s)).collect(),
+            _ => h.split(s).into_iter().map(|c| (r, c)).collect(),
         }
     }
 
@@ -351,8 +362,9 @@ fn ff_range(r: &Node, s: &Node, centre: f32) -> Spread {
 }
 
 /// Form factors and visibility of `pairs`, traced in batches. Returns the
-/// links (whose `samples` index the returned samples, `rays` per link) and
-/// the rays traced. `weight(leaf, side)` is the source radiosity the
+/// links, in parts as the batches made them, and the rays traced; the
+/// outcomes a link's visibility can be re-weighed from are appended to
+/// `samples`, `rays` per link, where its `samples` points. `weight(leaf, side)` is the source radiosity the
 /// visible fractions are weighed with (see [`reweigh`]).
 pub fn compute(
     h: &Hierarchy,
@@ -360,7 +372,8 @@ pub fn compute(
     engine: &dyn RayEngine,
     rays: usize,
     weight: &(dyn Fn(u32, usize) -> f32 + Sync),
-) -> (Vec<Link>, Vec<Sample>, u64) {
+    samples: &mut Vec<Sample>,
+) -> (Vec<Vec<Link>>, u64) {
     let out: Vec<(Vec<Link>, Vec<Sample>)> = pairs
         .par_chunks(128)
         .map(|chunk| {
@@ -387,8 +400,12 @@ pub fn compute(
                     continue;
                 }
                 let vis = Visibility::weighed(mine, weight);
-                let first = kept.len() as u32;
-                kept.extend_from_slice(mine);
+                let first = if mine.iter().all(|s| s.open) {
+                    ALL_OPEN
+                } else {
+                    kept.extend_from_slice(mine);
+                    (kept.len() - rays) as u32
+                };
                 links.push(Link {
                     r,
                     s,
@@ -399,18 +416,17 @@ pub fn compute(
             (links, kept)
         })
         .collect();
-    let mut links = Vec::new();
-    let mut samples = Vec::new();
-    for (l, s) in out {
+    let mut parts = Vec::with_capacity(out.len());
+    for (mut links, kept) in out {
         let offset = samples.len() as u32;
-        links.extend(l.into_iter().map(|l| Link {
-            samples: l.samples + offset,
-            ..l
-        }));
-        samples.extend(s);
+        for l in &mut links {
+            *l = l.shifted(offset);
+        }
+        samples.extend(kept);
+        parts.push(links);
     }
     let traced = (pairs.len() * rays) as u64;
-    (links, samples, traced)
+    (parts, traced)
 }
 
 /// Visible fractions again, weighed with new source radiosities.
@@ -421,6 +437,9 @@ pub fn reweigh(
     weight: &(dyn Fn(u32, usize) -> f32 + Sync),
 ) {
     links.par_iter_mut().for_each(|l| {
+        if l.samples == ALL_OPEN {
+            return;
+        }
         let first = l.samples as usize;
         let vis = Visibility::weighed(&samples[first..first + rays], weight);
         match &mut l.t {

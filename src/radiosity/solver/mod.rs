@@ -152,35 +152,39 @@ pub fn solve(
         };
         if round == 0 {
             let root = h.root;
-            refiner.refine(&mut h, root, root);
+            refiner.refine(&mut h, vec![(root, root)]);
         } else {
             let split = refiner.to_split(&h, &links);
             let mut kept = Vec::with_capacity(links.len());
+            let mut pairs = Vec::new();
             for (l, split) in links.drain(..).zip(split) {
                 if split {
-                    refiner.split_link(&mut h, l.r, l.s);
+                    pairs.extend(refiner.split_link(&mut h, l.r, l.s));
                 } else {
                     kept.push(l);
                 }
             }
             links = kept;
+            refiner.refine(&mut h, pairs);
         }
         let pending = std::mem::take(&mut refiner.pending);
         let weight = |leaf: u32, side: usize| refiner.weight(&h, leaf, side);
         links::reweigh(&mut links, &samples, params.rays_per_link, &weight);
-        let (new, new_samples, rays) =
-            links::compute(&h, &pending, engine, params.rays_per_link, &weight);
+        let (new, rays) = links::compute(
+            &h,
+            &pending,
+            engine,
+            params.rays_per_link,
+            &weight,
+            &mut samples,
+        );
         stats.shadow_rays += rays;
-        let offset = samples.len() as u32;
-        links.extend(new.into_iter().map(|l| Link {
-            samples: l.samples + offset,
-            ..l
-        }));
-        samples.extend(new_samples);
         stats.shadow_rays += extend_direct(&h, &mut direct_nodes, &scene.lights, engine, &params);
 
         let last = round + 1 == params.rounds;
-        let op = Operator::new(&h, std::mem::take(&mut links));
+        let mut parts = vec![std::mem::take(&mut links)];
+        parts.extend(new);
+        let op = Operator::new(&h, parts);
         let guess = solution
             .take()
             .map(|x| inherit(&h, &old_leaves, &x, &op.leaves))

@@ -11,7 +11,7 @@
 
 use std::f32::consts::{FRAC_PI_2, PI};
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 /// A convex polygon of at most four corners: a triangle clipped by one
 /// plane.
@@ -72,27 +72,34 @@ impl Polygon {
 /// Edges through `x` itself (a receiver point on the source's boundary)
 /// subtend no defined angle and are skipped, so touching geometry gives a
 /// finite value.
+///
+/// The (at most four) edges are evaluated side by side in the lanes of
+/// `Vec4`s, with the operations of one edge at a time in the same order:
+/// a third of a radiosity solve went to this function one edge at a time.
 pub fn point_to_polygon(x: Vec3, n: Vec3, poly: &Polygon) -> f32 {
     let c = poly.corners();
     if c.len() < 3 {
         return 0.0;
     }
-    let mut r = [Vec3::ZERO; 4];
-    for (r, &c) in r.iter_mut().zip(c) {
-        *r = c - x;
-    }
-    let r = &r[..c.len()];
-    let mut sum = 0.0f32;
-    for i in 0..r.len() {
-        let (a, b) = (r[i], r[(i + 1) % r.len()]);
-        let cross = a.cross(b);
-        let len = cross.length();
-        if len.is_nan() || len <= 0.0 || len.is_infinite() {
-            continue;
+    // Edge k runs from a[k] to b[k], relative to x; a missing fourth edge
+    // is zero and skipped like a degenerate one.
+    let (mut a, mut b) = ([[0.0f32; 4]; 3], [[0.0f32; 4]; 3]);
+    for k in 0..c.len() {
+        let (p, q) = (c[k] - x, c[(k + 1) % c.len()] - x);
+        for (axis, (pa, qa)) in [(p.x, q.x), (p.y, q.y), (p.z, q.z)].into_iter().enumerate() {
+            a[axis][k] = pa;
+            b[axis][k] = qa;
         }
-        let gamma = angle(len, a.dot(b));
-        sum += gamma * n.dot(cross) / len;
     }
+    let [ax, ay, az] = a.map(Vec4::from_array);
+    let [bx, by, bz] = b.map(Vec4::from_array);
+    let (cx, cy, cz) = (ay * bz - by * az, az * bx - bz * ax, ax * by - bx * ay);
+    let len = (cx * cx + cy * cy + cz * cz).sqrt();
+    let valid = len.cmpgt(Vec4::ZERO) & len.cmplt(Vec4::INFINITY);
+    let gamma = angle(len, ax * bx + ay * by + az * bz);
+    let w = Vec4::splat(n.x) * cx + Vec4::splat(n.y) * cy + Vec4::splat(n.z) * cz;
+    let t = Vec4::select(valid, gamma * w / len, Vec4::ZERO);
+    let sum = t.x + t.y + t.z + t.w;
     // The sign follows the polygon's winding as seen from x.
     let f = sum.abs() / (2.0 * PI);
     if f.is_finite() {
@@ -102,11 +109,11 @@ pub fn point_to_polygon(x: Vec3, n: Vec3, poly: &Polygon) -> f32 {
     }
 }
 
-/// `atan2(y, x)` for `y >= 0`, within 5e-7 rad (two float steps at π):
-/// the library's atan2 took an eighth of a radiosity solve. A degree-7
-/// polynomial in `t²` for `atan t` on [0, 1] (Chebyshev fit), with the
-/// octant symmetries.
-fn angle(y: f32, x: f32) -> f32 {
+/// `atan2(y, x)` for `y > 0` (or `y = 0` and `x != 0`), lane by lane,
+/// within 5e-7 rad (two float steps at π): the library's atan2 took an
+/// eighth of a radiosity solve. A degree-7 polynomial in `t²` for `atan t`
+/// on [0, 1] (Chebyshev fit), with the octant symmetries.
+fn angle(y: Vec4, x: Vec4) -> Vec4 {
     const C: [f32; 8] = [
         0.999_999_9,
         -0.333_319_6,
@@ -118,20 +125,15 @@ fn angle(y: f32, x: f32) -> f32 {
         -0.004_668_829,
     ];
     let ax = x.abs();
-    let steep = y > ax;
-    let t = if steep { ax / y } else { y / ax };
-    if !t.is_finite() {
-        // Both zero: no angle (callers skip such edges).
-        return 0.0;
-    }
+    let steep = y.cmpgt(ax);
+    let t = Vec4::select(steep, ax / y, y / ax);
     let t2 = t * t;
-    let a = t * C.iter().rev().fold(0.0, |acc, &c| acc * t2 + c);
-    let a = if steep { FRAC_PI_2 - a } else { a };
-    if x < 0.0 {
-        PI - a
-    } else {
-        a
-    }
+    let a = t * C
+        .iter()
+        .rev()
+        .fold(Vec4::ZERO, |acc, &c| acc * t2 + Vec4::splat(c));
+    let a = Vec4::select(steep, Vec4::splat(FRAC_PI_2) - a, a);
+    Vec4::select(x.cmplt(Vec4::ZERO), Vec4::splat(PI) - a, a)
 }
 
 /// Form factors from `x` (unit normal `n`) to the triangle `src`, for each
@@ -200,15 +202,15 @@ mod tests {
             for j in 0..=200 {
                 let y = i as f32 / 1000.0;
                 let x = j as f32 / 50.0 - 2.0;
-                let d = (angle(y, x) - y.atan2(x)).abs();
                 if y > 0.0 || x != 0.0 {
-                    worst = worst.max(d);
+                    let got = angle(Vec4::splat(y), Vec4::splat(x));
+                    assert!(got.cmpeq(Vec4::splat(got.x)).all());
+                    worst = worst.max((got.x - y.atan2(x)).abs());
                 }
             }
         }
         assert!(worst < 1e-6, "worst difference {worst}");
-        assert_eq!(angle(0.0, 0.0), 0.0);
-        assert_eq!(angle(0.0, -1.0), PI);
+        assert_eq!(angle(Vec4::ZERO, Vec4::NEG_ONE), Vec4::splat(PI));
     }
 
     #[test]

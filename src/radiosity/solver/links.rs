@@ -393,6 +393,7 @@ pub fn compute(
                 s.open = !b;
             }
             let mut links = Vec::with_capacity(chunk.len());
+            let mut points = Vec::with_capacity(16);
             let mut kept = Vec::with_capacity(samples.len());
             for (k, &(r, s, spread)) in chunk.iter().enumerate() {
                 let mine = &samples[k * rays..(k + 1) * rays];
@@ -409,7 +410,7 @@ pub fn compute(
                 links.push(Link {
                     r,
                     s,
-                    t: transfer(h, r, s, &vis, spread),
+                    t: transfer(h, r, s, &vis, spread, &mut points),
                     samples: first,
                 });
             }
@@ -500,7 +501,15 @@ impl Visibility {
     }
 }
 
-fn transfer(h: &Hierarchy, r: u32, s: u32, vis: &Visibility, spread: Spread) -> Transfer {
+/// `pts`: room for the receiver points, reused from link to link.
+fn transfer(
+    h: &Hierarchy,
+    r: u32,
+    s: u32,
+    vis: &Visibility,
+    spread: Spread,
+    pts: &mut Vec<Vec3>,
+) -> Transfer {
     let (nr, ns) = (h.node(r), h.node(s));
     if nr.cluster || ns.cluster {
         let d = ns.center - nr.center;
@@ -513,11 +522,11 @@ fn transfer(h: &Hierarchy, r: u32, s: u32, vis: &Visibility, spread: Spread) -> 
     }
     // Close pairs vary fast over the receiver: average over more points.
     let near = nr.center.distance(ns.center) < 2.0 * (nr.radius + ns.radius);
-    let mut pts = Vec::with_capacity(16);
-    receiver_points(nr.tri, if near { 2 } else { 1 }, &mut pts);
+    pts.clear();
+    receiver_points(nr.tri, if near { 2 } else { 1 }, pts);
     let sn = ns.normal;
     let mut f = [[0.0f32; 2]; 2];
-    for &x in &pts {
+    for &x in pts.iter() {
         let sides = point_to_triangle_sides(x, nr.normal, ns.tri);
         // x sees the source's front when it lies in front of its plane.
         let b = usize::from((x - ns.tri[0]).dot(sn) < 0.0);

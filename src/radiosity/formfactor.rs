@@ -11,7 +11,7 @@
 
 use std::f32::consts::{FRAC_PI_2, PI};
 
-use glam::{Vec3, Vec4};
+use glam::{BVec4A, Vec3, Vec4};
 
 /// A convex polygon of at most four corners: a triangle clipped by one
 /// plane.
@@ -91,16 +91,25 @@ pub fn point_to_polygon(x: Vec3, n: Vec3, poly: &Polygon) -> f32 {
             b[axis][k] = qa;
         }
     }
-    let [ax, ay, az] = a.map(Vec4::from_array);
-    let [bx, by, bz] = b.map(Vec4::from_array);
+    let t = edge_terms(a.map(Vec4::from_array), b.map(Vec4::from_array), n);
+    form_factor(t.x + t.y + t.z + t.w)
+}
+
+/// Per lane, the term of the edge from `a` to `b` (x, y, z components,
+/// relative to the point) in the sum of [`point_to_polygon`]; zero for an
+/// edge through the point.
+fn edge_terms([ax, ay, az]: [Vec4; 3], [bx, by, bz]: [Vec4; 3], n: Vec3) -> Vec4 {
     let (cx, cy, cz) = (ay * bz - by * az, az * bx - bz * ax, ax * by - bx * ay);
     let len = (cx * cx + cy * cy + cz * cz).sqrt();
     let valid = len.cmpgt(Vec4::ZERO) & len.cmplt(Vec4::INFINITY);
     let gamma = angle(len, ax * bx + ay * by + az * bz);
     let w = Vec4::splat(n.x) * cx + Vec4::splat(n.y) * cy + Vec4::splat(n.z) * cz;
-    let t = Vec4::select(valid, gamma * w / len, Vec4::ZERO);
-    let sum = t.x + t.y + t.z + t.w;
-    // The sign follows the polygon's winding as seen from x.
+    Vec4::select(valid, gamma * w / len, Vec4::ZERO)
+}
+
+/// The form factor from a sum of edge terms.
+fn form_factor(sum: f32) -> f32 {
+    // The sign follows the polygon's winding as seen from the point.
     let f = sum.abs() / (2.0 * PI);
     if f.is_finite() {
         f.min(1.0)
@@ -154,6 +163,42 @@ pub fn point_to_triangle_sides(x: Vec3, n: Vec3, src: [Vec3; 3]) -> [f32; 2] {
         }
     };
     [side(1.0), side(-1.0)]
+}
+
+/// [`point_to_triangle_sides`] for four points `xs` of one receiver, bit
+/// for bit, with the points side by side in lanes: a link's transfer
+/// averages 4 or 16 of them. A point across whose plane the source lies
+/// needs its own clip and is evaluated alone.
+pub fn points_to_triangle_sides(xs: [Vec3; 4], n: Vec3, src: [Vec3; 3]) -> [[f32; 2]; 4] {
+    let lanes = |axis: usize| Vec4::from_array(xs.map(|x| x[axis]));
+    let (px, py, pz) = (lanes(0), lanes(1), lanes(2));
+    let corners = src.map(|c| {
+        [
+            Vec4::splat(c.x) - px,
+            Vec4::splat(c.y) - py,
+            Vec4::splat(c.z) - pz,
+        ]
+    });
+    // Whether each point has source corners in front of it, and behind.
+    let (mut front, mut back) = (BVec4A::FALSE, BVec4A::FALSE);
+    for [rx, ry, rz] in corners {
+        let d = rx * n.x + ry * n.y + rz * n.z;
+        front |= d.cmpgt(Vec4::ZERO);
+        back |= d.cmplt(Vec4::ZERO);
+    }
+    if (front & back).any() {
+        return xs.map(|x| point_to_triangle_sides(x, n, src));
+    }
+    let mut sum = Vec4::ZERO;
+    for k in 0..3 {
+        sum += edge_terms(corners[k], corners[(k + 1) % 3], n);
+    }
+    let f = Vec4::select(front | back, (sum + Vec4::ZERO).abs(), Vec4::ZERO);
+    let (front, back) = (front.bitmask(), back.bitmask());
+    std::array::from_fn(|i| {
+        let f = form_factor(f[i]);
+        [front, back].map(|m| if m & (1 << i) != 0 { f } else { 0.0 })
+    })
 }
 
 /// Interior points of `t` that split it into equal areas: the centroids of
@@ -228,6 +273,46 @@ mod tests {
             .map(|&t| point_to_triangle_sides(Vec3::ZERO, Vec3::Z, t)[0])
             .sum();
         assert!((f - 1.0).abs() < 1e-3, "{f}");
+    }
+
+    #[test]
+    fn four_points_at_once_equal_one_at_a_time_bit_for_bit() {
+        let mut seed = 7u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32 * 2.0 - 1.0
+        };
+        let mut across = 0;
+        for i in 0..2000 {
+            let n = Vec3::new(next(), next(), next()).normalize_or(Vec3::Z);
+            // Lifted off the plane, most but not all of the time wholly.
+            let lift = n * (1.2 + next());
+            let src = [(); 3].map(|_| Vec3::new(next(), next(), next()) * 0.5 + lift);
+            // Points of one plane through the origin, and now and then one on
+            // a source edge (the source then lies across its plane).
+            let mut xs = [(); 4].map(|_| {
+                let p = Vec3::new(next(), next(), next());
+                p - n * p.dot(n)
+            });
+            if i % 4 == 0 {
+                xs[3] = (src[0] + src[1]) * 0.5;
+            }
+            let got = points_to_triangle_sides(xs, n, src);
+            for (x, g) in xs.iter().zip(got) {
+                let want = point_to_triangle_sides(*x, n, src);
+                assert_eq!(
+                    g.map(f32::to_bits),
+                    want.map(f32::to_bits),
+                    "{x} {n} {src:?}"
+                );
+            }
+            across += usize::from(got.iter().any(|f| f[0] > 0.0 && f[1] > 0.0));
+        }
+        // Both ways are taken: one point at a time, and all four in lanes.
+        assert!(
+            (100..1900).contains(&across),
+            "{across} of 2000 sets had a source across a point's plane"
+        );
     }
 
     #[test]

@@ -7,7 +7,9 @@ use rayon::prelude::*;
 use super::hierarchy::{Hierarchy, Node, FLAT_COS, NONE};
 use super::linear::NodeRadiosity;
 use crate::accel::RayEngine;
-use crate::radiosity::formfactor::{point_to_triangle_sides, receiver_points};
+use crate::radiosity::formfactor::{
+    point_to_triangle_sides, points_to_triangle_sides, receiver_points,
+};
 use crate::ray::{offset_origin, Ray};
 
 /// How light gets from a link's source to its receiver.
@@ -352,9 +354,11 @@ fn ff_range(r: &Node, s: &Node, centre: f32) -> Spread {
     let c = r.center;
     let [a, b, d] = r.tri;
     let near = |p: Vec3| p + (c - p) * 0.05;
-    [near(a), near(b), near(d)]
+    // Three points in four lanes, the last a repeat.
+    let xs = [near(a), near(b), near(d), near(a)];
+    points_to_triangle_sides(xs, r.normal, s.tri)[..3]
         .iter()
-        .map(|&x| ff_at(r, s, x))
+        .map(|f| f[0].max(f[1]))
         .fold(
             [f32::INFINITY.min(centre), 0.0f32.max(centre)],
             |[lo, hi], f| [lo.min(f), hi.max(f)],
@@ -526,12 +530,17 @@ fn transfer(
     receiver_points(nr.tri, if near { 2 } else { 1 }, pts);
     let sn = ns.normal;
     let mut f = [[0.0f32; 2]; 2];
-    for &x in pts.iter() {
-        let sides = point_to_triangle_sides(x, nr.normal, ns.tri);
-        // x sees the source's front when it lies in front of its plane.
-        let b = usize::from((x - ns.tri[0]).dot(sn) < 0.0);
-        f[0][b] += sides[0];
-        f[1][b] += sides[1];
+    for xs in pts.chunks_exact(4) {
+        let xs = [xs[0], xs[1], xs[2], xs[3]];
+        for (x, sides) in xs
+            .into_iter()
+            .zip(points_to_triangle_sides(xs, nr.normal, ns.tri))
+        {
+            // x sees the source's front when it lies in front of its plane.
+            let b = usize::from((x - ns.tri[0]).dot(sn) < 0.0);
+            f[0][b] += sides[0];
+            f[1][b] += sides[1];
+        }
     }
     let w = 1.0 / pts.len() as f32;
     Transfer::Surfaces {
@@ -590,6 +599,9 @@ fn sphere_span(o: Vec3, d: Vec3, center: Vec3, radius: f32) -> Option<[f32; 2]> 
 /// the leaf that holds it (`NONE` otherwise: only the source end's leaf
 /// weighs a ray): stratified over a triangle, or on an area-chosen patch
 /// of a cluster.
+// Called twice a shadow ray: left out of line (as the compiler chose once the
+// form factors took four points at a time), the solve took 7% longer.
+#[inline(always)]
 fn sample_point(
     h: &Hierarchy,
     mut i: u32,

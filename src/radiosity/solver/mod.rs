@@ -154,17 +154,17 @@ pub fn solve(
             let root = h.root;
             refiner.refine(&mut h, vec![(root, root)]);
         } else {
-            let split = refiner.to_split(&h, &links);
-            let mut kept = Vec::with_capacity(links.len());
+            let mut split = refiner.to_split(&h, &links).into_iter();
             let mut pairs = Vec::new();
-            for (l, split) in links.drain(..).zip(split) {
+            // In place: a new list of the kept links would be tens of
+            // megabytes of fresh memory a round.
+            links.retain(|l| {
+                let split = split.next().expect("a verdict per link");
                 if split {
                     pairs.extend(refiner.split_link(&mut h, l.r, l.s));
-                } else {
-                    kept.push(l);
                 }
-            }
-            links = kept;
+                !split
+            });
             refiner.refine(&mut h, pairs);
         }
         let pending = std::mem::take(&mut refiner.pending);

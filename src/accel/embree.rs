@@ -195,7 +195,7 @@ impl RayEngine for EmbreeEngine {
                 *o = packet.tfar[k] == f32::NEG_INFINITY;
             }
         };
-        // Sixteen rays that are not coherent together may be as two halves:
+        // Sixteen rays that are not coherent together may be in two halves:
         // the radiosity's links trace eight rays each between two elements,
         // seldom parallel to the next link's (the studio's solve takes 4%
         // less time for it).

@@ -193,7 +193,10 @@ pub fn points_to_triangle_sides(xs: [Vec3; 4], n: Vec3, src: [Vec3; 3]) -> [[f32
     for k in 0..3 {
         sum += edge_terms(corners[k], corners[(k + 1) % 3], n);
     }
-    let f = Vec4::select(front | back, (sum + Vec4::ZERO).abs(), Vec4::ZERO);
+    // A point that sees neither side gets zero below whatever its sum; and
+    // summed from zero, a lane can differ from one edge at a time only in
+    // the sign of a zero, which `form_factor` drops.
+    let f = sum.to_array();
     let (front, back) = (front.bitmask(), back.bitmask());
     std::array::from_fn(|i| {
         let f = form_factor(f[i]);

@@ -50,11 +50,11 @@ pub struct Link {
 /// are one whatever the sources' radiosities, so there is nothing to
 /// re-weigh and its outcomes are not kept (seven links in ten on the
 /// Cornell box).
-pub const ALL_OPEN: u32 = u32::MAX;
+const ALL_OPEN: u32 = u32::MAX;
 
 impl Link {
     /// The link with its outcomes `offset` further on in the sample list.
-    pub fn shifted(self, offset: u32) -> Self {
+    fn shifted(self, offset: u32) -> Self {
         let samples = match self.samples {
             ALL_OPEN => ALL_OPEN,
             first => first + offset,
@@ -368,8 +368,9 @@ fn ff_range(r: &Node, s: &Node, centre: f32) -> Spread {
 /// Form factors and visibility of `pairs`, traced in batches. Returns the
 /// links, in parts as the batches made them, and the rays traced; the
 /// outcomes a link's visibility can be re-weighed from are appended to
-/// `samples`, `rays` per link, where its `samples` points. `weight(leaf, side)` is the source radiosity the
-/// visible fractions are weighed with (see [`reweigh`]).
+/// `samples`, `rays` per link, where its `samples` points.
+/// `weight(leaf, side)` is the source radiosity the visible fractions are
+/// weighed with (see [`reweigh`]).
 pub fn compute(
     h: &Hierarchy,
     pairs: &[(u32, u32, Spread)],
@@ -531,7 +532,7 @@ fn transfer(
     let sn = ns.normal;
     let mut f = [[0.0f32; 2]; 2];
     for xs in pts.chunks_exact(4) {
-        let xs = [xs[0], xs[1], xs[2], xs[3]];
+        let xs: [Vec3; 4] = xs.try_into().expect("chunks of four");
         for (x, sides) in xs
             .into_iter()
             .zip(points_to_triangle_sides(xs, nr.normal, ns.tri))

@@ -42,8 +42,9 @@ pub struct Params {
     pub min_area_fraction: f32,
     /// Shadow rays per link for its visible fraction.
     pub rays_per_link: usize,
-    /// Points per element for direct light from point lights and the sun.
-    pub direct_points: usize,
+    /// Direct light from point lights and the sun is sampled on a
+    /// `direct_grid × direct_grid` stratified grid of points per element.
+    pub direct_grid: usize,
     /// Solve-and-refine rounds.
     pub rounds: usize,
     /// Relative residual the linear solver stops at.
@@ -61,7 +62,7 @@ impl Params {
             link_error: 10f32.powf(-(2.0 + 3.0 * q)),
             min_area_fraction: 10f32.powf(-(1.5 + 3.0 * q)),
             rays_per_link: 4 + (4.0 * q).round() as usize,
-            direct_points: 1 + (3.0 * q).round() as usize,
+            direct_grid: 5 + (3.0 * q).round() as usize,
             rounds: if q < 0.5 { 2 } else { 3 },
             tolerance: 1e-5,
             oracle_tolerance: 1e-3,
@@ -268,7 +269,7 @@ fn extend_direct(
     let new: Vec<u32> = (direct.len() as u32..h.nodes.len() as u32)
         .filter(|&i| !h.node(i).cluster)
         .collect();
-    let (values, rays) = sources::direct(h, &new, lights, engine, params.direct_points);
+    let (values, rays) = sources::direct(h, &new, lights, engine, params.direct_grid);
     direct.resize(h.nodes.len(), [Vec3::ZERO; 2]);
     for (&i, v) in new.iter().zip(values) {
         direct[i as usize] = v;

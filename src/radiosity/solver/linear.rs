@@ -431,7 +431,7 @@ fn iterate(
         let r_next = true_residual(&next);
         let res_next = rel(&r_next);
         iterations += 1;
-        if !(res_next < res) {
+        if res_next >= res || res_next.is_nan() {
             break;
         }
         (x, r, res) = (next, r_next, res_next);

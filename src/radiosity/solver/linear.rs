@@ -489,7 +489,9 @@ fn cycle(
         res = rel(&r);
         rho_old = rho_new;
         if res < best.0 {
-            best = (res, x.clone());
+            // Into the buffer already held: no allocation per iteration.
+            best.0 = res;
+            best.1.clone_from(&x);
         } else if res > DIVERGED * best.0 {
             break;
         }

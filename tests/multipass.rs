@@ -121,6 +121,7 @@ mod lookup {
         let s = Simplified {
             patches,
             records,
+            pruned: Vec::new(),
             stats: Default::default(),
         };
         (s, values)

@@ -216,6 +216,7 @@ mod bake {
         let mut s = Simplified::whole(&scene);
         s.stats.seconds = 0.1 + 0.2;
         s.stats.visibility_rays = 12345;
+        s.pruned = vec![(0, 1), (0, 7), (3, 0), (u32::MAX, u32::MAX)];
         save(dir, &scene, &s, &series).unwrap();
         (s, series)
     }
@@ -300,7 +301,7 @@ mod bake {
         load(&dir).unwrap();
 
         // Wrong version.
-        let v = original.replace("version = 3", "version = 99");
+        let v = original.replace("version = 4", "version = 99");
         assert_ne!(v, original);
         fs::write(&manifest, v).unwrap();
         expect_error(&dir, "manifest.toml", &["version", "99"]);
@@ -317,6 +318,18 @@ mod bake {
         // Not TOML at all.
         fs::write(&manifest, "\u{0}\u{1}garbage").unwrap();
         expect_error(&dir, "manifest.toml", &[]);
+
+        // Left-out triangles out of order, with a checksum that fits.
+        let pruned = dir.join("pruned.bin");
+        let bytes = fs::read(&pruned).unwrap();
+        let mut swapped = bytes[8..16].to_vec();
+        swapped.extend_from_slice(&bytes[..8]);
+        swapped.extend_from_slice(&bytes[16..]);
+        fs::write(&pruned, &swapped).unwrap();
+        let sum = |b: &[u8]| rangewalk::checksum::hex(rangewalk::checksum::fnv1a64(b));
+        fs::write(&manifest, original.replace(&sum(&bytes), &sum(&swapped))).unwrap();
+        expect_error(&dir, "pruned.bin", &["ascend"]);
+        fs::write(&pruned, &bytes).unwrap();
 
         // Missing binary file.
         fs::write(&manifest, &original).unwrap();

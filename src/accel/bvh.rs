@@ -367,6 +367,10 @@ impl RayEngine for BvhEngine {
         "bvh"
     }
 
+    fn backend(&self) -> super::Backend {
+        super::Backend::Bvh
+    }
+
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         self.trace::<false>(ray).map(|c| self.hit(&c))
     }

@@ -133,6 +133,10 @@ impl RayEngine for EmbreeEngine {
         "embree"
     }
 
+    fn backend(&self) -> super::Backend {
+        super::Backend::Embree
+    }
+
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let mut rh = embree::ray_hit(ray);
         self.scene.intersect1(&mut rh);

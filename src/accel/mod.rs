@@ -39,6 +39,9 @@ pub trait RayEngine: Send + Sync {
     /// Short name for reports ("embree", "bvh").
     fn name(&self) -> &'static str;
 
+    /// Which backend this is, to build another engine of the same kind.
+    fn backend(&self) -> Backend;
+
     /// Closest hit along the ray, if any.
     fn intersect(&self, ray: &Ray) -> Option<Hit>;
 

@@ -25,14 +25,16 @@ use super::{IndirectSolution, Patch, Quality, RecordPoint, Simplified, SimplifyS
 /// Identifies a bake manifest.
 pub const FORMAT: &str = "rangewalk-bake";
 /// Bumped whenever the layout changes; older or newer bakes are refused.
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 pub const MANIFEST: &str = "manifest.toml";
 const PATCHES: &str = "patches.bin";
 const RECORDS: &str = "records.bin";
 const IRRADIANCE: &str = "irradiance.bin";
+const PRUNED: &str = "pruned.bin";
 /// Bytes per stored element.
 const PATCH_BYTES: usize = 4 * (1 + 9 + 3 + 3 + 3 + 3 + 1);
 const RECORD_BYTES: usize = 4 * (1 + 3 + 3);
+const PRUNED_BYTES: usize = 4 * 2;
 const VEC_BYTES: usize = 12;
 
 #[derive(Serialize, Deserialize)]
@@ -97,6 +99,7 @@ struct Files {
     patches: FileEntry,
     records: FileEntry,
     irradiance: FileEntry,
+    pruned: FileEntry,
 }
 
 /// One binary file: how many elements, how many bytes, and a checksum that
@@ -153,6 +156,11 @@ pub fn save(dir: &Path, scene: &Scene, simplified: &Simplified, series: &TimeSer
 
     let patches = encode_patches(&simplified.patches);
     let records = encode_records(&simplified.records);
+    let mut pruned = Vec::with_capacity(simplified.pruned.len() * PRUNED_BYTES);
+    for &(object, triangle) in &simplified.pruned {
+        put_u32(&mut pruned, object);
+        put_u32(&mut pruned, triangle);
+    }
     let mut irradiance = Vec::with_capacity(series.solutions.len() * 2 * n * VEC_BYTES);
     for s in &series.solutions {
         put_vecs(&mut irradiance, &s.indirect);
@@ -172,6 +180,7 @@ pub fn save(dir: &Path, scene: &Scene, simplified: &Simplified, series: &TimeSer
             patches: file_entry(PATCHES, simplified.patches.len(), &patches),
             records: file_entry(RECORDS, n, &records),
             irradiance: file_entry(IRRADIANCE, series.solutions.len(), &irradiance),
+            pruned: file_entry(PRUNED, simplified.pruned.len(), &pruned),
         },
     };
     let text = toml::to_string(&manifest).context("bake: encoding the manifest")?;
@@ -179,6 +188,7 @@ pub fn save(dir: &Path, scene: &Scene, simplified: &Simplified, series: &TimeSer
         (PATCHES, patches.as_slice()),
         (RECORDS, &records),
         (IRRADIANCE, &irradiance),
+        (PRUNED, &pruned),
         (MANIFEST, text.as_bytes()),
     ] {
         let path = partial.join(name);
@@ -284,6 +294,21 @@ pub fn load_with_info(dir: &Path) -> Result<(Simplified, TimeSeries, BakeInfo)> 
         m.solutions.len()
     );
 
+    let pruned_raw = read_checked(dir, &m.files.pruned, PRUNED_BYTES, "files.pruned")?;
+    let pruned: Vec<(u32, u32)> = words(&pruned_raw)
+        .collect::<Vec<_>>()
+        .chunks_exact(2)
+        .map(|w| (w[0], w[1]))
+        .collect();
+    if let Some(k) = pruned.windows(2).position(|w| w[0] >= w[1]) {
+        bail!(
+            "{}: entry {} {:?} does not follow {:?}: entries must ascend",
+            dir.join(PRUNED).display(),
+            k + 1,
+            pruned[k + 1],
+            pruned[k]
+        );
+    }
     let records = decode_records(&records_raw);
     let patches = decode_patches(&patches_raw);
     let pfile = dir.join(PATCHES);
@@ -325,6 +350,7 @@ pub fn load_with_info(dir: &Path) -> Result<(Simplified, TimeSeries, BakeInfo)> 
     let simplified = Simplified {
         patches,
         records,
+        pruned,
         stats: SimplifyStats {
             initial_surfaces: s.initial_surfaces as usize,
             pruned_surfaces: s.pruned_surfaces as usize,

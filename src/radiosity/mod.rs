@@ -120,6 +120,12 @@ pub struct SimplifyStats {
 pub struct Simplified {
     pub patches: Vec<Patch>,
     pub records: Vec<RecordPoint>,
+    /// The input triangles no patch stands for (left-out objects, pruned
+    /// parts) as `(object, index in its mesh)`, ascending. They still stand
+    /// in the light, and a solver that let them only block it made them
+    /// black: the studio's left-out books took 2.3% of its indirect light at
+    /// q = 0.3 (docs/radiosity.md).
+    pub pruned: Vec<(u32, u32)>,
     pub stats: SimplifyStats,
 }
 
@@ -296,6 +302,7 @@ impl Simplified {
         Simplified {
             patches,
             records,
+            pruned: Vec::new(),
             stats: SimplifyStats::default(),
         }
     }

@@ -13,8 +13,9 @@
 //!   and every kept triangle is bisected down to a maximum edge length.
 //!
 //! Emitters are never left out or coarsened, so the emitted power stays
-//! exact. Left-out objects still block light: the solver traces visibility
-//! in the full scene.
+//! exact. Left-out objects and pruned parts still stand in the light: the
+//! solver traces visibility in the full scene, and lets rays through what
+//! was left out with its albedo's share (see [`Simplified::pruned`]).
 
 use std::time::Instant;
 
@@ -132,6 +133,7 @@ pub fn simplify_report(
 
     let mut objects = Vec::with_capacity(scene.objects.len());
     let mut pieces: Vec<(u32, [Vec3; 3])> = Vec::new();
+    let mut pruned = Vec::new();
     let mut depth_limited = 0;
     for (i, o) in scene.objects.iter().enumerate() {
         let emitter = scene.materials[o.material].emission.is_some();
@@ -151,6 +153,7 @@ pub fn simplify_report(
             Reduced {
                 fate: Fate::Whole,
                 kept: triangles(&o.mesh),
+                pruned: Vec::new(),
                 pruned_area: 0.0,
                 pruned_parts: 0,
             }
@@ -179,9 +182,11 @@ pub fn simplify_report(
             pruned_parts: r.pruned_parts,
             patches: 0,
         });
+        pruned.extend(r.pruned.iter().map(|&t| (i as u32, t)));
     }
 
     let mut simplified = Simplified::from_triangles(scene, pieces);
+    simplified.pruned = pruned;
     for p in &simplified.patches {
         objects[p.object as usize].patches += 1;
     }
@@ -226,6 +231,8 @@ fn classify(hits: u64, total_hits: u64, params: &Params) -> Seen {
 struct Reduced {
     fate: Fate,
     kept: Vec<[Vec3; 3]>,
+    /// The input triangles left out, ascending.
+    pruned: Vec<u32>,
     pruned_area: f32,
     pruned_parts: usize,
 }
@@ -238,12 +245,18 @@ fn reduce(mesh: &Mesh, seen: Seen, scale: f32, params: &Params) -> Reduced {
         return Reduced {
             fate: Fate::Unseen,
             kept: Vec::new(),
+            pruned: (0..mesh.triangles.len() as u32).collect(),
             pruned_area: 0.0,
             pruned_parts: 0,
         };
     }
     let min_area = params.min_part_area / (scale * scale);
-    let (mesh, pruned_area, pruned_parts) = parts::prune_small(mesh, min_area);
+    let parts::Pruned {
+        kept: mesh,
+        triangles: pruned,
+        area: pruned_area,
+        parts: pruned_parts,
+    } = parts::prune_small(mesh, min_area);
     let keep = if seen == Seen::Moderately {
         params.moderate_keep
     } else {
@@ -264,6 +277,7 @@ fn reduce(mesh: &Mesh, seen: Seen, scale: f32, params: &Params) -> Reduced {
     Reduced {
         fate,
         kept,
+        pruned,
         pruned_area,
         pruned_parts,
     }

@@ -26,9 +26,18 @@ pub fn weld(positions: &[Vec3]) -> (Vec<Vec3>, Vec<u32>) {
     (verts, remap)
 }
 
+/// What [`prune_small`] left and took.
+pub struct Pruned {
+    pub kept: Mesh,
+    /// Indices of the removed triangles in the input mesh, ascending.
+    pub triangles: Vec<u32>,
+    pub area: f32,
+    pub parts: usize,
+}
+
 /// The mesh without its connected parts of area below `min_area` (parts
-/// meet at shared positions), the area removed and the number of parts.
-pub fn prune_small(mesh: &Mesh, min_area: f32) -> (Mesh, f32, usize) {
+/// meet at shared positions).
+pub fn prune_small(mesh: &Mesh, min_area: f32) -> Pruned {
     let (verts, remap) = weld(&mesh.positions);
     let mut parent: Vec<u32> = (0..verts.len() as u32).collect();
     fn root(parent: &mut [u32], mut v: u32) -> u32 {
@@ -64,7 +73,12 @@ pub fn prune_small(mesh: &Mesh, min_area: f32) -> (Mesh, f32, usize) {
         .zip(&roots)
         .filter(|(_, r)| small(r))
         .fold(0.0, |sum, (&t, _)| sum + mesh.triangle_area(t));
-    let pruned_parts = part_area.values().filter(|&&a| a < min_area).count();
+    let parts = part_area.values().filter(|&&a| a < min_area).count();
+    let triangles = (0..mesh.triangles.len() as u32)
+        .zip(&roots)
+        .filter(|(_, r)| small(r))
+        .map(|(i, _)| i)
+        .collect();
     let kept = Mesh {
         positions: mesh.positions.clone(),
         triangles: mesh
@@ -76,7 +90,12 @@ pub fn prune_small(mesh: &Mesh, min_area: f32) -> (Mesh, f32, usize) {
             .collect(),
         uvs: None,
     };
-    (kept, pruned_area, pruned_parts)
+    Pruned {
+        kept,
+        triangles,
+        area: pruned_area,
+        parts,
+    }
 }
 
 #[cfg(test)]
@@ -103,9 +122,10 @@ mod tests {
             triangles: vec![[0, 1, 2], [3, 5, 4], [6, 7, 8]],
             uvs: None,
         };
-        let (kept, area, parts) = prune_small(&mesh, 0.1);
-        assert_eq!(kept.triangles, vec![[0, 1, 2], [3, 5, 4]]);
-        assert_eq!(parts, 1);
-        assert!((area - 0.005).abs() < 1e-6);
+        let pruned = prune_small(&mesh, 0.1);
+        assert_eq!(pruned.kept.triangles, vec![[0, 1, 2], [3, 5, 4]]);
+        assert_eq!(pruned.triangles, vec![2]);
+        assert_eq!(pruned.parts, 1);
+        assert!((pruned.area - 0.005).abs() < 1e-6);
     }
 }

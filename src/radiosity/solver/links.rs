@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use super::hierarchy::{Hierarchy, Node, FLAT_COS, NONE};
 use super::linear::NodeRadiosity;
+use super::pruned::Pruned;
 use crate::accel::RayEngine;
 use crate::radiosity::formfactor::{
     point_to_triangle_sides, points_to_triangle_sides, receiver_points,
@@ -71,7 +72,20 @@ pub struct Sample {
     pub leaf: u32,
     /// Receiver side and source side (0 = front).
     pub sides: (u8, u8),
-    pub open: bool,
+    /// The share of the ray's light that gets through, in 255ths: 0 when
+    /// blocked, 255 when open, between when only left-out geometry stands
+    /// in the way (see [`Pruned`]).
+    pub pass: u8,
+}
+
+impl Sample {
+    fn open(&self) -> bool {
+        self.pass == u8::MAX
+    }
+
+    fn share(&self) -> f32 {
+        f32::from(self.pass) * (1.0 / 255.0)
+    }
 }
 
 impl Transfer {
@@ -370,11 +384,13 @@ fn ff_range(r: &Node, s: &Node, centre: f32) -> Spread {
 /// outcomes a link's visibility can be re-weighed from are appended to
 /// `samples`, `rays` per link, where its `samples` points.
 /// `weight(leaf, side)` is the source radiosity the visible fractions are
-/// weighed with (see [`reweigh`]).
+/// weighed with (see [`reweigh`]); rays that only left-out geometry blocks
+/// pass with its share (see [`Pruned`]).
 pub fn compute(
     h: &Hierarchy,
     pairs: &[(u32, u32, Spread)],
     engine: &dyn RayEngine,
+    pruned: &Pruned,
     rays: usize,
     weight: &(dyn Fn(u32, usize) -> f32 + Sync),
     samples: &mut Vec<Sample>,
@@ -392,21 +408,21 @@ pub fn compute(
                     samples.push(sample);
                 }
             }
-            let mut blocked = vec![false; batch.len()];
-            engine.occluded_batch(&batch, &mut blocked);
-            for (s, b) in samples.iter_mut().zip(blocked) {
-                s.open = !b;
+            let mut pass = vec![0; batch.len()];
+            pruned.pass_batch(engine, &batch, &mut pass);
+            for (s, p) in samples.iter_mut().zip(pass) {
+                s.pass = p;
             }
             let mut links = Vec::with_capacity(chunk.len());
             let mut points = Vec::with_capacity(16);
             let mut kept = Vec::with_capacity(samples.len());
             for (k, &(r, s, spread)) in chunk.iter().enumerate() {
                 let mine = &samples[k * rays..(k + 1) * rays];
-                if !mine.iter().any(|s| s.open) {
+                if mine.iter().all(|s| s.pass == 0) {
                     continue;
                 }
                 let vis = Visibility::weighed(mine, weight);
-                let first = if mine.iter().all(|s| s.open) {
+                let first = if mine.iter().all(Sample::open) {
                     ALL_OPEN
                 } else {
                     kept.extend_from_slice(mine);
@@ -474,7 +490,7 @@ impl Visibility {
     fn weighed(samples: &[Sample], weight: &dyn Fn(u32, usize) -> f32) -> Self {
         // Most links are wholly open, and then every fraction is one
         // whatever the weights: skip weighing them.
-        if samples.iter().all(|s| s.open) {
+        if samples.iter().all(Sample::open) {
             return Self {
                 overall: 1.0,
                 pair: [[1.0; 2]; 2],
@@ -487,9 +503,7 @@ impl Visibility {
                 let (a, b) = (s.sides.0 as usize, s.sides.1 as usize);
                 let w = w(s);
                 all[a][b] += w;
-                if s.open {
-                    open[a][b] += w;
-                }
+                open[a][b] += w * s.share();
             }
             (open, all)
         };
@@ -580,7 +594,7 @@ fn shadow_ray(h: &Hierarchy, r: u32, s: u32, seed: u32, j: usize, n: usize) -> (
             u8::from((ps - pr).dot(nr) < 0.0),
             u8::from((pr - ps).dot(ns) < 0.0),
         ),
-        open: false,
+        pass: 0,
     };
     (Ray::segment(a, b - a, 1.0), sample)
 }

@@ -24,6 +24,7 @@ mod hierarchy;
 mod linear;
 mod links;
 mod output;
+mod pruned;
 mod sources;
 mod standin;
 
@@ -87,6 +88,7 @@ pub fn solve(
     let total_area: f32 = simplified.patches.iter().map(|p| p.area()).sum();
     let poses = scene.at(time);
     let lifts = standin::lifts(scene, simplified, &poses, engine);
+    let pruned = pruned::Pruned::new(scene, simplified, engine.backend(), &poses)?;
     let mut h = Hierarchy::build(
         simplified,
         &poses,
@@ -175,6 +177,7 @@ pub fn solve(
             &h,
             &pending,
             engine,
+            &pruned,
             params.rays_per_link,
             &weight,
             &mut samples,
@@ -337,6 +340,21 @@ fn validate(scene: &Scene, s: &Simplified) -> Result<()> {
         }
         if !p.vertices.iter().all(|v| v.is_finite()) {
             bail!("object `{name}`: a patch has a non-finite vertex");
+        }
+    }
+    for &(o, t) in &s.pruned {
+        let Some(object) = scene.objects.get(o as usize) else {
+            bail!(
+                "the simplified scene lists a left-out triangle of object {o}, but the scene has {} objects",
+                scene.objects.len()
+            );
+        };
+        if t as usize >= object.mesh.triangles.len() {
+            bail!(
+                "object `{}`: the simplified scene lists left-out triangle {t}, but the mesh has {}",
+                object.name,
+                object.mesh.triangles.len()
+            );
         }
     }
     for (i, l) in scene.lights.iter().enumerate() {

@@ -60,7 +60,7 @@ impl Params {
     pub fn new(quality: Quality) -> Self {
         let q = quality.get();
         Self {
-            link_error: 10f32.powf(-(2.0 + 3.0 * q)),
+            link_error: 10f32.powf(-(3.2 + 5.0 * q / 3.0)),
             min_area_fraction: 10f32.powf(-(1.5 + 3.0 * q)),
             rays_per_link: 4 + (4.0 * q).round() as usize,
             direct_grid: 5 + (3.0 * q).round() as usize,

@@ -127,36 +127,32 @@ mod tests {
 
     use super::*;
 
-    /// An axis-aligned box as twelve triangles, its vertices numbered from
-    /// `first` (OBJ counts from 1).
+    /// The unit cube of `scenes/furnace` stretched over `lo..hi`, its
+    /// vertices numbered from `first` (OBJ counts from 1).
     fn cuboid(name: &str, lo: Vec3, hi: Vec3, first: usize) -> String {
+        let cube = std::fs::read_to_string(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/furnace/cube.obj"),
+        )
+        .unwrap();
         let mut s = format!("o {name}\n");
-        for k in 0..8 {
-            let p = Vec3::new(
-                if k & 1 == 0 { lo.x } else { hi.x },
-                if k & 2 == 0 { lo.y } else { hi.y },
-                if k & 4 == 0 { lo.z } else { hi.z },
-            );
-            s += &format!("v {} {} {}\n", p.x, p.y, p.z);
-        }
-        for [a, b, c, d] in [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ] {
-            let v = |i: usize| first + i;
-            s += &format!(
-                "f {} {} {}\nf {} {} {}\n",
-                v(a),
-                v(b),
-                v(c),
-                v(a),
-                v(c),
-                v(d)
-            );
+        for line in cube.lines() {
+            let mut words = line.split_whitespace();
+            let numbers = words.clone().skip(1);
+            match words.next() {
+                Some("v") => {
+                    let v: Vec<f32> = numbers.map(|x| x.parse().unwrap()).collect();
+                    let p = lo + (hi - lo) * Vec3::from_slice(&v);
+                    s += &format!("v {} {} {}\n", p.x, p.y, p.z);
+                }
+                Some("f") => {
+                    s.push('f');
+                    for i in numbers {
+                        s += &format!(" {}", i.parse::<usize>().unwrap() + first - 1);
+                    }
+                    s.push('\n');
+                }
+                _ => {}
+            }
         }
         s
     }
@@ -214,9 +210,18 @@ mod tests {
         assert_eq!(passes(&s), [255, near, near, near, 0]);
 
         // Only part of an object left out: the near box's face towards the
-        // origin (x = 1, triangles 8 and 9), so a ray through the box still
-        // meets its kept far face.
-        s.pruned = vec![(0, 8), (0, 9)];
+        // origin (x = 1), so a ray through the box still meets its kept far
+        // face.
+        let mesh = &scene.objects[0].mesh;
+        s.pruned = (0..mesh.triangles.len() as u32)
+            .filter(|&t| {
+                mesh.triangles[t as usize]
+                    .iter()
+                    .all(|&v| mesh.positions[v as usize].x == 1.0)
+            })
+            .map(|t| (0, t))
+            .collect();
+        assert_eq!(s.pruned.len(), 2);
         assert_eq!(passes(&s), [255, near, 0, 0, 0]);
     }
 }

@@ -156,11 +156,7 @@ pub fn save(dir: &Path, scene: &Scene, simplified: &Simplified, series: &TimeSer
 
     let patches = encode_patches(&simplified.patches);
     let records = encode_records(&simplified.records);
-    let mut pruned = Vec::with_capacity(simplified.pruned.len() * PRUNED_BYTES);
-    for &(object, triangle) in &simplified.pruned {
-        put_u32(&mut pruned, object);
-        put_u32(&mut pruned, triangle);
-    }
+    let pruned = encode_pruned(&simplified.pruned);
     let mut irradiance = Vec::with_capacity(series.solutions.len() * 2 * n * VEC_BYTES);
     for s in &series.solutions {
         put_vecs(&mut irradiance, &s.indirect);
@@ -295,11 +291,7 @@ pub fn load_with_info(dir: &Path) -> Result<(Simplified, TimeSeries, BakeInfo)> 
     );
 
     let pruned_raw = read_checked(dir, &m.files.pruned, PRUNED_BYTES, "files.pruned")?;
-    let pruned: Vec<(u32, u32)> = words(&pruned_raw)
-        .collect::<Vec<_>>()
-        .chunks_exact(2)
-        .map(|w| (w[0], w[1]))
-        .collect();
+    let pruned = decode_pruned(&pruned_raw);
     if let Some(k) = pruned.windows(2).position(|w| w[0] >= w[1]) {
         bail!(
             "{}: entry {} {:?} does not follow {:?}: entries must ascend",
@@ -575,6 +567,25 @@ fn decode_patches(bytes: &[u8]) -> Vec<Patch> {
                 emission: v(19),
                 two_sided: w[22] != 0,
             }
+        })
+        .collect()
+}
+
+fn encode_pruned(pruned: &[(u32, u32)]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(pruned.len() * PRUNED_BYTES);
+    for &(object, triangle) in pruned {
+        put_u32(&mut out, object);
+        put_u32(&mut out, triangle);
+    }
+    out
+}
+
+fn decode_pruned(bytes: &[u8]) -> Vec<(u32, u32)> {
+    bytes
+        .chunks_exact(PRUNED_BYTES)
+        .map(|c| {
+            let w: Vec<u32> = words(c).collect();
+            (w[0], w[1])
         })
         .collect()
 }

@@ -17,6 +17,7 @@
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use rangewalk::accel::{self, Backend};
+use rangewalk::eval::metrics::luminance;
 use rangewalk::radiosity::lookup::IrradianceCache;
 use rangewalk::radiosity::{simplify, solve, Quality, Simplified};
 use rangewalk::render::{self, multipass, RenderSettings};
@@ -68,8 +69,7 @@ fn main() -> Result<()> {
         max_depth: None,
         seed: 3,
     };
-    let luminance = |c: &Vec3| f64::from(0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z);
-    let mean = |v: &[Vec3]| v.iter().map(luminance).sum::<f64>() / v.len() as f64;
+    let mean = |v: &[Vec3]| v.iter().map(|&c| luminance(c)).sum::<f64>() / v.len() as f64;
     let mut means = Vec::new();
     for indirect in [
         multipass::Indirect::Records(&cache),

@@ -584,8 +584,8 @@ fn decode_pruned(bytes: &[u8]) -> Vec<(u32, u32)> {
     bytes
         .chunks_exact(PRUNED_BYTES)
         .map(|c| {
-            let w: Vec<u32> = words(c).collect();
-            (w[0], w[1])
+            let mut w = words(c);
+            (w.next().unwrap_or_default(), w.next().unwrap_or_default())
         })
         .collect()
 }

@@ -80,6 +80,73 @@ pub struct Tile {
     /// Directions of the pixels that see nothing (their `points` are unit
     /// directions): they project as points at infinity.
     pub sky: Option<Bounds>,
+    /// For the fixed points (`None`) and each moving object's (at the
+    /// base's time), the slab holding them: it bounds the depth of the
+    /// tile's samples pixel by pixel of a frame, where the bounds give one
+    /// nearest depth for the whole tile, which a surface seen at an angle
+    /// is far behind over most of its projection.
+    pub slabs: Vec<(Option<u32>, Slab)>,
+}
+
+/// Points `p` with `|normal · p − offset| ≤ half_width`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Slab {
+    pub normal: Vec3,
+    pub offset: f32,
+    pub half_width: f32,
+}
+
+impl Slab {
+    /// The slab of the points of a grid (`width` a row) whose `keys` are
+    /// `key`, around the plane through their centroid whose normal is the
+    /// sum of the normals of the triangles that neighbouring such points
+    /// make (any normal where they make none). Thin where they lie on one
+    /// plane; wider (a weaker bound, never a wrong one) where they do not.
+    pub(super) fn fit(points: &[Vec3], keys: &[u32], width: usize, key: u32) -> Slab {
+        let mut normal = Vec3::ZERO;
+        let (mut sum, mut n) = (Vec3::ZERO, 0);
+        for (k, p) in points.iter().enumerate() {
+            if keys[k] != key {
+                continue;
+            }
+            sum += *p;
+            n += 1;
+            let (right, down) = (k + 1, k + width);
+            if (k + 1) % width != 0
+                && down < points.len()
+                && keys[right] == key
+                && keys[down] == key
+            {
+                normal += (points[right] - *p).cross(points[down] - *p);
+            }
+        }
+        let normal = normal.try_normalize().unwrap_or(Vec3::Z);
+        let offset = normal.dot(sum / n.max(1) as f32);
+        let half_width = points
+            .iter()
+            .zip(keys)
+            .filter(|(_, k)| **k == key)
+            .map(|(p, _)| (normal.dot(*p) - offset).abs())
+            .fold(0.0, f32::max);
+        Slab {
+            normal,
+            offset,
+            half_width,
+        }
+    }
+
+    /// The slab of the points moved by the affine map `m`.
+    pub fn moved(&self, m: &glam::Affine3A) -> Slab {
+        // n · p = (A⁻ᵀ n) · (A p + t − t).
+        let normal = m.matrix3.inverse().transpose() * glam::Vec3A::from(self.normal);
+        let length = normal.length();
+        let normal = Vec3::from(normal / length);
+        Slab {
+            normal,
+            offset: (self.offset + length * normal.dot(Vec3::from(m.translation))) / length,
+            half_width: self.half_width / length,
+        }
+    }
 }
 
 /// The union of a square of tiles' bounds.
@@ -226,7 +293,11 @@ impl Base {
             + self
                 .tiles
                 .iter()
-                .map(|t| 72 + 28 * t.moving.len())
+                .map(|t| {
+                    std::mem::size_of::<Tile>()
+                        + 28 * t.moving.len()
+                        + std::mem::size_of::<(Option<u32>, Slab)>() * t.slabs.len()
+                })
                 .sum::<usize>()
             + self.blocks.len() * std::mem::size_of::<Block>()
     }
@@ -236,6 +307,10 @@ impl Base {
         from_half(&self.radiance[k]) * self.scale
     }
 }
+
+/// The key of the fixed points in [`Slab::fit`]'s grid (object ids are
+/// below it, [`SKY`] above).
+const FIXED: u32 = SKY - 1;
 
 fn tiles(camera: &Camera, points: &[Vec3], object: &[u32], moving: &[bool]) -> Vec<Tile> {
     let (w, h) = (camera.width, camera.height);
@@ -251,14 +326,25 @@ fn tiles(camera: &Camera, points: &[Vec3], object: &[u32], moving: &[bool]) -> V
                 fixed: None,
                 moving: Vec::new(),
                 sky: None,
+                slabs: Vec::new(),
             };
             let mut fixed = Bounds::EMPTY;
+            // The tile's points in grid order, keyed by the group whose
+            // slab they join: the fixed points, each moving object's, sky.
+            let cap = ((TILE + 1) * (TILE + 1)) as usize;
+            let (mut grid, mut keys) = (Vec::with_capacity(cap), Vec::with_capacity(cap));
             let mut sky = Bounds::EMPTY;
             let mut by_object: Vec<(u32, Bounds)> = Vec::new();
             for y in y0..(y0 + TILE + 1).min(h) {
                 for x in x0..(x0 + TILE + 1).min(w) {
                     let k = (y * w + x) as usize;
                     let o = object[k];
+                    grid.push(points[k]);
+                    keys.push(match o {
+                        SKY => SKY,
+                        o if moving[o as usize] => o,
+                        _ => FIXED,
+                    });
                     if o == SKY {
                         if points[k] != Vec3::ZERO {
                             sky.grow(points[k]);
@@ -280,6 +366,15 @@ fn tiles(camera: &Camera, points: &[Vec3], object: &[u32], moving: &[bool]) -> V
             tile.fixed = (!fixed.is_empty()).then_some(fixed);
             tile.sky = (!sky.is_empty()).then_some(sky);
             tile.moving = by_object;
+            let width = ((x0 + TILE + 1).min(w) - x0) as usize;
+            if tile.fixed.is_some() {
+                tile.slabs
+                    .push((None, Slab::fit(&grid, &keys, width, FIXED)));
+            }
+            for (o, _) in &tile.moving {
+                tile.slabs
+                    .push((Some(*o), Slab::fit(&grid, &keys, width, *o)));
+            }
             tile
         })
         .collect()

@@ -548,8 +548,17 @@ pub fn warp(
                 for &(item, slot) in band_items {
                     let (i, t, reach) = items[item];
                     let pass = &passes[i as usize];
-                    if cull && hidden(band.hot, w, y0, &reach, settings.tolerance) {
-                        let (tile, base) = (&pass.base.tiles[t as usize], pass.base);
+                    let (tile, base) = (&pass.base.tiles[t as usize], pass.base);
+                    if cull
+                        && hidden(
+                            target,
+                            (tile, &pass.moves),
+                            band.hot,
+                            y0,
+                            &reach,
+                            settings.tolerance,
+                        )
+                    {
                         let side = |at: u32, n: u32| ((at + TILE).min(n) - at) as usize;
                         band.hidden += side(tile.x0, base.width()) * side(tile.y0, base.height());
                         continue;
@@ -582,13 +591,36 @@ pub fn warp(
 /// projected size, past its sample.
 const REACH_MARGIN: u32 = 2;
 
-/// Whether samples of a tile that reaches `reach` cannot change the band's
-/// pixels `hot` (rows `y0..`, `width` wide) under nearest-first blending:
-/// every pixel it may touch is covered by an earlier sample, and none of
-/// its points is nearer than those by more than the tolerance. Then a
-/// later base adds nothing there, and its tile is not projected: where the
-/// nearest base sees the frame, the others cost nothing.
-fn hidden(hot: &[Hot], width: u32, y0: u32, reach: &Reach, eps: f32) -> bool {
+/// Share of a tile's depth kept back from its slab's bound: a footprint
+/// gives a pixel its sample's depth extrapolated along the frame, which
+/// departs from the plane's own depth there by terms of second order in
+/// the distance it is carried (under a hundredth at the footprints'
+/// largest extent, [`MAX_SPLAT`] pixels, seen at up to 80°). Half the
+/// tolerance: the samples of a surface an earlier base holds stay within
+/// it.
+const SLAB_MARGIN: f32 = 0.01;
+
+/// Whether samples of `tile` (its points moved by `moves`), which reaches
+/// `reach`, cannot change the band's pixels `hot` (rows `y0..`) under
+/// nearest-first blending: every pixel it may touch is covered by an
+/// earlier sample, and none of its points is nearer than those by more
+/// than the tolerance. Then a later base adds nothing there, and its tile
+/// is not projected: where the nearest base sees the frame, the others
+/// cost nothing.
+///
+/// A tile's depth at a pixel is at least its nearest point's distance;
+/// also the least distance along the pixel's ray to the slabs of its
+/// points (but no more than twice the nearest point's, the most a
+/// footprint carries its sample's depth). Its sky is as far as can be.
+fn hidden(
+    target: &Target,
+    (tile, moves): (&Tile, &[Option<Affine3A>]),
+    hot: &[Hot],
+    y0: u32,
+    reach: &Reach,
+    eps: f32,
+) -> bool {
+    let width = target.camera.width;
     let y1 = y0 + hot.len() as u32 / width;
     let (ya, yb) = (
         reach.rows.0.saturating_sub(REACH_MARGIN).max(y0),
@@ -601,12 +633,63 @@ fn hidden(hot: &[Hot], width: u32, y0: u32, reach: &Reach, eps: f32) -> bool {
     if ya >= yb || xa >= xb {
         return true;
     }
-    let limit = reach.near / (1.0 - eps);
+    let near = reach.near;
+    let limit = near / (1.0 - eps);
+    // A slab's distance along pixel (x, y)'s ray: with the ray
+    // d = f·forward + u·right + v·up, it is (|g| − δ)·|d| / |n·d| where the
+    // camera lies at signed distance g from the slab's middle on the side
+    // the ray faces. Where the camera is within a slab, none bounds.
+    let f = target.focal.unwrap_or(0.0);
+    let c = &target.camera;
+    let mut slabs = [(0.0, 0.0, 0.0, 0.0); 4];
+    let bounded = target.focal.is_some()
+        && tile.slabs.len() <= slabs.len()
+        && tile.slabs.iter().zip(&mut slabs).all(|((o, s), out)| {
+            let s = match o.and_then(|o| moves.get(o as usize)?.as_ref()) {
+                Some(m) => s.moved(m),
+                None => *s,
+            };
+            let g = s.offset - s.normal.dot(c.position);
+            let sign = g.signum();
+            *out = (
+                g.abs() - s.half_width,
+                sign * f * s.normal.dot(c.forward),
+                sign * s.normal.dot(c.right),
+                sign * s.normal.dot(c.up),
+            );
+            out.0 > 0.0
+        });
+    let slabs = &slabs[..if bounded { tile.slabs.len() } else { 0 }];
+    let (hw, hh) = (0.5 * width as f32, 0.5 * c.height as f32);
     (ya..yb).all(|y| {
         let row = ((y - y0) * width) as usize;
+        let v = hh - (y as f32 + 0.5);
         hot[row + xa as usize..row + xb as usize]
             .iter()
-            .all(|p| p.covered() && p.z <= limit)
+            .zip(xa..xb)
+            .all(|(p, x)| {
+                if !p.covered() {
+                    return false;
+                }
+                if p.z <= limit {
+                    return true;
+                }
+                if slabs.is_empty() {
+                    return false;
+                }
+                let u = x as f32 + 0.5 - hw;
+                let length = (f * f + u * u + v * v).sqrt();
+                let along = slabs.iter().fold(f32::INFINITY, |low, &(gap, nf, nr, nu)| {
+                    let facing = nf + nr * u + nu * v;
+                    if facing > 0.0 {
+                        low.min(gap * length / facing)
+                    } else {
+                        0.0
+                    }
+                });
+                let low = (along * (1.0 - SLAB_MARGIN)).min(2.0 * near);
+                low >= p.z * (1.0 - eps)
+            })
     })
 }
 
@@ -1207,6 +1290,109 @@ pub(super) mod tests {
     /// show that it changes nothing.
     pub static NO_CULLING: std::sync::atomic::AtomicBool =
         std::sync::atomic::AtomicBool::new(false);
+
+    /// A floor seen at an angle, 3.3 to 4.2 units away, behind what an
+    /// earlier base put at each pixel: its nearest point is nearer than
+    /// most of those by far more than the tolerance, so only its slab shows
+    /// that it is hidden; where it is nearer than what the pixels hold, it
+    /// is not.
+    #[test]
+    fn a_slab_shows_a_tile_seen_at_an_angle_hidden_where_it_is() {
+        use super::super::base::Slab;
+        let camera = Camera::look_at(
+            Vec3::ZERO,
+            Vec3::new(0.0, -0.5, -1.0),
+            Vec3::Y,
+            Projection::Perspective { vfov_deg: 60.0 },
+            64,
+            64,
+        )
+        .unwrap();
+        let target = Target::new(camera);
+        let n = TILE as usize + 1;
+        let points: Vec<Vec3> = (0..n * n)
+            .map(|k| {
+                let (i, j) = ((k % n) as f32 / TILE as f32, (k / n) as f32 / TILE as f32);
+                Vec3::new(-0.5 + i, -1.0, -4.0 + j)
+            })
+            .collect();
+        let mut bounds = Bounds {
+            lo: Vec3::splat(f32::INFINITY),
+            hi: Vec3::splat(f32::NEG_INFINITY),
+        };
+        for p in &points {
+            bounds.lo = bounds.lo.min(*p);
+            bounds.hi = bounds.hi.max(*p);
+        }
+        let slab = Slab::fit(&points, &vec![0; n * n], n, 0);
+        assert!(slab.half_width < 1e-5, "{slab:?}");
+        assert!((slab.normal.y.abs() - 1.0).abs() < 1e-6, "{slab:?}");
+        let mut tile = Tile {
+            x0: 0,
+            y0: 0,
+            fixed: Some(bounds),
+            moving: Vec::new(),
+            sky: None,
+            slabs: vec![(None, slab)],
+        };
+        let reach = target.tile_reach(&tile, &[]).unwrap();
+        // Each pixel holds the floor's distance along its ray times
+        // `scale`, or a nearer surface above the horizon.
+        let frame = |scale: f32| -> Vec<Hot> {
+            (0..64 * 64)
+                .map(|k| {
+                    let (x, y) = ((k % 64) as f32 + 0.5, (k / 64) as f32 + 0.5);
+                    let ray = target.camera.ray(x, y).unwrap();
+                    let d = ray.dir.normalize();
+                    let z = if d.y < -1e-3 { -1.0 / d.y } else { 0.5 };
+                    Hot {
+                        z: z * scale,
+                        tag: 1,
+                        ..Hot::default()
+                    }
+                })
+                .collect()
+        };
+        let eps = 0.02;
+        let behind = frame(1.0);
+        assert!(hidden(&target, (&tile, &[]), &behind, 0, &reach, eps));
+        let farther = frame(1.0 / (1.0 - 1.5 * eps));
+        assert!(!hidden(&target, (&tile, &[]), &farther, 0, &reach, eps));
+        tile.slabs.clear();
+        assert!(!hidden(&target, (&tile, &[]), &behind, 0, &reach, eps));
+    }
+
+    /// A moving object's slab, moved with it, still holds its points.
+    #[test]
+    fn a_moved_slab_holds_the_moved_points() {
+        use super::super::base::Slab;
+        let n = 5;
+        let points: Vec<Vec3> = (0..n * n)
+            .map(|k| {
+                Vec3::new(
+                    (k % n) as f32,
+                    0.3 * (k / n) as f32,
+                    2.0 + 0.1 * (k / n) as f32,
+                )
+            })
+            .collect();
+        let slab = Slab::fit(&points, &vec![7; n * n], n, 7);
+        let m = Affine3A::from_scale_rotation_translation(
+            Vec3::splat(1.5),
+            glam::Quat::from_euler(glam::EulerRot::XYZ, 0.4, -1.1, 2.0),
+            Vec3::new(3.0, -2.0, 10.0),
+        );
+        let moved = slab.moved(&m);
+        assert!((moved.normal.length() - 1.0).abs() < 1e-5, "{moved:?}");
+        for p in &points {
+            let q = m.transform_point3(*p);
+            let off = (moved.normal.dot(q) - moved.offset).abs();
+            assert!(off <= moved.half_width + 1e-4, "{q}: {off} from {moved:?}");
+        }
+        // The points span the plane: a slab that is not moved misses them.
+        let q = m.transform_point3(points[n * n - 1]);
+        assert!((slab.normal.dot(q) - slab.offset).abs() > 0.1);
+    }
 
     #[test]
     fn floor_and_ceil_agree_with_libm() {

@@ -135,14 +135,6 @@ impl Slab {
         }
     }
 
-    /// Whether `other` lies on the same plane (the two triangles of a
-    /// quadrilateral, say): then one slab as wide as both holds them.
-    fn coplanar(&self, other: &Slab) -> bool {
-        let scale = self.offset.abs().max(other.offset.abs()).max(1.0);
-        self.normal.dot(other.normal) > 1.0 - 1e-6
-            && (self.offset - other.offset).abs() <= 1e-5 * scale
-    }
-
     /// The slab of the points moved by the affine map `m`.
     pub fn moved(&self, m: &glam::Affine3A) -> Slab {
         // n · p = (A⁻ᵀ n) · (A p + t − t).
@@ -263,12 +255,7 @@ impl Base {
             .iter()
             .map(|o| !o.motion.is_static())
             .collect();
-        let tiles = tiles(
-            &camera,
-            &points,
-            (&img.object_id, &img.primitive_id),
-            &moving,
-        );
+        let tiles = tiles(&camera, &points, &img.object_id, &moving);
         let blocks = blocks(&camera, &tiles);
         Ok(Base {
             image,
@@ -325,19 +312,7 @@ impl Base {
 /// below it, [`SKY`] above).
 const FIXED: u32 = SKY - 1;
 
-/// Most slabs a tile keeps: one for each plane of the triangles it shows
-/// (the faces meeting at an edge or corner) while they are no more than
-/// [`MAX_FACES`] on this many planes, else one for the fixed points and one
-/// for each moving object.
-pub const MAX_SLABS: usize = 4;
-const MAX_FACES: usize = 8;
-
-fn tiles(
-    camera: &Camera,
-    points: &[Vec3],
-    (object, primitive): (&[u32], &[u32]),
-    moving: &[bool],
-) -> Vec<Tile> {
+fn tiles(camera: &Camera, points: &[Vec3], object: &[u32], moving: &[bool]) -> Vec<Tile> {
     let (w, h) = (camera.width, camera.height);
     let origins: Vec<(u32, u32)> = (0..h.div_ceil(TILE))
         .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
@@ -358,7 +333,6 @@ fn tiles(
             // slab they join: the fixed points, each moving object's, sky.
             let cap = ((TILE + 1) * (TILE + 1)) as usize;
             let (mut grid, mut keys) = (Vec::with_capacity(cap), Vec::with_capacity(cap));
-            let mut triangles = Vec::with_capacity(cap);
             let mut sky = Bounds::EMPTY;
             let mut by_object: Vec<(u32, Bounds)> = Vec::new();
             for y in y0..(y0 + TILE + 1).min(h) {
@@ -366,7 +340,6 @@ fn tiles(
                     let k = (y * w + x) as usize;
                     let o = object[k];
                     grid.push(points[k]);
-                    triangles.push(primitive[k]);
                     keys.push(match o {
                         SKY => SKY,
                         o if moving[o as usize] => o,
@@ -394,49 +367,13 @@ fn tiles(
             tile.sky = (!sky.is_empty()).then_some(sky);
             tile.moving = by_object;
             let width = ((x0 + TILE + 1).min(w) - x0) as usize;
-            // A slab for each plane of few triangles (the faces of an edge
-            // or a corner), else for each group.
-            let mut faces: Vec<(u32, u32)> = Vec::with_capacity(MAX_FACES + 1);
-            let few = keys.iter().zip(&triangles).all(|(&key, &t)| {
-                key == SKY || faces.contains(&(key, t)) || {
-                    faces.push((key, t));
-                    faces.len() <= MAX_FACES
-                }
-            });
-            let motion = |key: u32| (key != FIXED).then_some(key);
-            if few {
-                let face_keys: Vec<u32> = keys
-                    .iter()
-                    .zip(&triangles)
-                    .map(
-                        |(&key, &t)| match faces.iter().position(|f| *f == (key, t)) {
-                            Some(i) => i as u32,
-                            None => SKY,
-                        },
-                    )
-                    .collect();
-                for (i, &(key, _)) in faces.iter().enumerate() {
-                    let slab = (motion(key), Slab::fit(&grid, &face_keys, width, i as u32));
-                    match tile
-                        .slabs
-                        .iter_mut()
-                        .find(|s| s.0 == slab.0 && s.1.coplanar(&slab.1))
-                    {
-                        Some(s) => s.1.half_width = s.1.half_width.max(slab.1.half_width),
-                        None => tile.slabs.push(slab),
-                    }
-                }
+            if tile.fixed.is_some() {
+                tile.slabs
+                    .push((None, Slab::fit(&grid, &keys, width, FIXED)));
             }
-            if !few || tile.slabs.len() > MAX_SLABS {
-                tile.slabs.clear();
-                if tile.fixed.is_some() {
-                    tile.slabs
-                        .push((None, Slab::fit(&grid, &keys, width, FIXED)));
-                }
-                for (o, _) in &tile.moving {
-                    tile.slabs
-                        .push((Some(*o), Slab::fit(&grid, &keys, width, *o)));
-                }
+            for (o, _) in &tile.moving {
+                tile.slabs
+                    .push((Some(*o), Slab::fit(&grid, &keys, width, *o)));
             }
             tile
         })
@@ -547,67 +484,5 @@ impl BaseCache {
         }
         self.held.insert(k, (base.clone(), self.clock));
         Ok(base)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::camera::Projection;
-
-    /// The points of a one-tile image: a wall above a floor, each of two
-    /// triangles, or a curved surface of many.
-    fn tile_of(point: impl Fn(u32, u32) -> (Vec3, u32)) -> Tile {
-        let camera = Camera::look_at(
-            Vec3::ZERO,
-            Vec3::NEG_Z,
-            Vec3::Y,
-            Projection::Perspective { vfov_deg: 40.0 },
-            TILE,
-            TILE,
-        )
-        .unwrap();
-        let (points, primitive): (Vec<Vec3>, Vec<u32>) =
-            (0..TILE * TILE).map(|k| point(k % TILE, k / TILE)).unzip();
-        let object = vec![0; points.len()];
-        let mut tiles = tiles(&camera, &points, (&object, &primitive), &[false]);
-        assert_eq!(tiles.len(), 1);
-        tiles.pop().unwrap()
-    }
-
-    #[test]
-    fn a_tile_across_an_edge_keeps_a_thin_slab_for_each_face() {
-        let tile = tile_of(|x, y| {
-            let (u, v) = (x as f32 * 0.1, y as f32 * 0.1);
-            let diagonal = (x > y) as u32;
-            if y < TILE / 2 {
-                (Vec3::new(u, 1.0 - v, -5.0), diagonal)
-            } else {
-                (Vec3::new(u, -1.0, -5.0 + v), 2 + diagonal)
-            }
-        });
-        assert_eq!(tile.slabs.len(), 2, "{:?}", tile.slabs);
-        for (motion, slab) in &tile.slabs {
-            assert_eq!(*motion, None);
-            assert!(slab.half_width < 1e-5, "{slab:?}");
-            assert!(
-                slab.normal.z.abs() > 1.0 - 1e-6 || slab.normal.y.abs() > 1.0 - 1e-6,
-                "{slab:?}"
-            );
-        }
-        // Many triangles of a sphere: one slab holds them all.
-        let sphere = |x: u32, y: u32| {
-            let (a, b) = (x as f32 * 0.05, y as f32 * 0.05);
-            let d = Vec3::new(a.sin(), b.sin(), -(a.cos() * b.cos()));
-            (2.0 * d.normalize(), y * TILE + x)
-        };
-        let tile = tile_of(sphere);
-        assert_eq!(tile.slabs.len(), 1, "{:?}", tile.slabs);
-        let (_, slab) = tile.slabs[0];
-        for k in 0..TILE * TILE {
-            let (p, _) = sphere(k % TILE, k / TILE);
-            assert!((slab.normal.dot(p) - slab.offset).abs() <= slab.half_width + 1e-6);
-        }
-        assert!(slab.half_width > 1e-3, "{slab:?}");
     }
 }

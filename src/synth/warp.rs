@@ -17,7 +17,7 @@ use glam::{Affine3A, Vec2, Vec3};
 use half::{f16, slice::HalfFloatSliceExt};
 use rayon::prelude::*;
 
-use super::base::{Base, Bounds, Tile, MAX_SLABS, SKY, TILE};
+use super::base::{Base, Bounds, Tile, SKY, TILE};
 use crate::camera::{Camera, Projection};
 
 /// Depth of a pixel that sees nothing: farther than any surface.
@@ -641,7 +641,7 @@ fn hidden(
     // the ray faces. Where the camera is within a slab, none bounds.
     let f = target.focal.unwrap_or(0.0);
     let c = &target.camera;
-    let mut slabs = [(0.0, 0.0, 0.0, 0.0); MAX_SLABS];
+    let mut slabs = [(0.0, 0.0, 0.0, 0.0); 4];
     let bounded = target.focal.is_some()
         && tile.slabs.len() <= slabs.len()
         && tile.slabs.iter().zip(&mut slabs).all(|((o, s), out)| {

@@ -97,6 +97,14 @@ pub struct Slab {
 }
 
 impl Slab {
+    /// All of space: the slab of points that make no triangle, whose
+    /// plane is unknown.
+    const UNBOUNDED: Slab = Slab {
+        normal: Vec3::Z,
+        offset: 0.0,
+        half_width: f32::INFINITY,
+    };
+
     /// The slab of the points of a grid (`width` a row) whose `keys` are
     /// `key`, around the plane through their centroid whose normal is the
     /// sum of the normals of the triangles that neighbouring such points
@@ -120,7 +128,9 @@ impl Slab {
                 normal += (points[right] - *p).cross(points[down] - *p);
             }
         }
-        let normal = normal.try_normalize().unwrap_or(Vec3::Z);
+        let Some(normal) = normal.try_normalize() else {
+            return Slab::UNBOUNDED;
+        };
         let offset = normal.dot(sum / n.max(1) as f32);
         let half_width = points
             .iter()

@@ -881,17 +881,21 @@ mod tests {
         .unwrap();
         let baked = Bake::open(dir.path(), &scene).unwrap();
         let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
-        let camera = scene
-            .path("walk")
-            .unwrap()
-            .at(0.5)
-            .perspective(64, 64)
-            .unwrap();
-        for (t, time_interp, supersample) in [
-            (0.0, TimeInterp::Motion, 1),
-            (0.5, TimeInterp::Motion, 2),
-            (0.5, TimeInterp::Linear, 1),
+        // Frames whose pixels are narrower than the bases' and wider,
+        // from points along the walk.
+        for (at, size, t, time_interp, supersample) in [
+            (0.5, 64, 0.0, TimeInterp::Motion, 1),
+            (0.5, 64, 0.5, TimeInterp::Motion, 2),
+            (0.5, 64, 0.5, TimeInterp::Linear, 1),
+            (0.1, 160, 0.0, TimeInterp::Motion, 1),
+            (0.9, 160, 0.7, TimeInterp::Motion, 1),
         ] {
+            let camera = scene
+                .path("walk")
+                .unwrap()
+                .at(at)
+                .perspective(size, size)
+                .unwrap();
             let opts = Options {
                 blend: Blend::Nearest,
                 bases: 3,
@@ -906,7 +910,7 @@ mod tests {
             let (skipped, with) = frame(true);
             let (kept, without) = frame(false);
             warp::tests::NO_CULLING.store(false, Ordering::Relaxed);
-            let case = format!("t = {t}, {time_interp}, {supersample}²");
+            let case = format!("{size}² at {at}, t = {t}, {time_interp}, {supersample}²");
             assert!(with.hidden > 0, "{case}: nothing was skipped");
             assert_eq!(without.hidden, 0, "{case}");
             let bits = |i: &RangeImage| -> Vec<u32> {

@@ -1394,6 +1394,26 @@ pub(super) mod tests {
         assert!((slab.normal.dot(q) - slab.offset).abs() > 0.1);
     }
 
+    /// Points in a row make no triangle: their plane is unknown, and a
+    /// plane guessed through them would bound nothing their footprints
+    /// reach.
+    #[test]
+    fn points_that_make_no_triangle_have_no_slab() {
+        use super::super::base::Slab;
+        let points: Vec<Vec3> = (0..9)
+            .map(|k| Vec3::new((k % 3) as f32, (k / 3) as f32, -3.0))
+            .collect();
+        let mut keys = vec![1; 9];
+        for k in [1, 2, 4, 5, 7, 8] {
+            keys[k] = 2;
+        }
+        // Key 1 holds the first column of a 3-wide grid.
+        let slab = Slab::fit(&points, &keys, 3, 1);
+        assert!(slab.half_width.is_infinite(), "{slab:?}");
+        let slab = Slab::fit(&points, &keys, 3, 2);
+        assert!(slab.half_width.is_finite(), "{slab:?}");
+    }
+
     #[test]
     fn floor_and_ceil_agree_with_libm() {
         for x in [

@@ -652,7 +652,7 @@ fn hidden(
             let g = s.offset - s.normal.dot(c.position);
             let sign = g.signum();
             *out = (
-                g.abs() - s.half_width,
+                (g.abs() - s.half_width) * (1.0 - SLAB_MARGIN),
                 sign * f * s.normal.dot(c.forward),
                 sign * s.normal.dot(c.right),
                 sign * s.normal.dot(c.up),
@@ -674,21 +674,20 @@ fn hidden(
                 if p.z <= limit {
                     return true;
                 }
-                if slabs.is_empty() {
+                // The depth to beat; past twice the nearest point's, no
+                // footprint's depth can be shown to reach it.
+                let beat = p.z * (1.0 - eps);
+                if slabs.is_empty() || beat > 2.0 * near {
                     return false;
                 }
+                // Each slab's (1 − margin)·(|g| − δ)·|d| / (n·d) ≥ beat,
+                // squared to spare a root and a division.
                 let u = x as f32 + 0.5 - hw;
-                let length = (f * f + u * u + v * v).sqrt();
-                let along = slabs.iter().fold(f32::INFINITY, |low, &(gap, nf, nr, nu)| {
+                let length2 = f * f + u * u + v * v;
+                slabs.iter().all(|&(gap, nf, nr, nu)| {
                     let facing = nf + nr * u + nu * v;
-                    if facing > 0.0 {
-                        low.min(gap * length / facing)
-                    } else {
-                        0.0
-                    }
-                });
-                let low = (along * (1.0 - SLAB_MARGIN)).min(2.0 * near);
-                low >= p.z * (1.0 - eps)
+                    facing > 0.0 && gap * gap * length2 >= (beat * facing).powi(2)
+                })
             })
     })
 }

@@ -108,7 +108,7 @@ impl Slab {
     /// The slab of the points of a grid (`width` a row) whose `keys` are
     /// `key`, around the plane through their centroid whose normal is the
     /// sum of the normals of the triangles that neighbouring such points
-    /// make (any normal where they make none). Thin where they lie on one
+    /// make (all of space where they make none). Thin where they lie on one
     /// plane; wider (a weaker bound, never a wrong one) where they do not.
     pub(super) fn fit(points: &[Vec3], keys: &[u32], width: usize, key: u32) -> Slab {
         let mut normal = Vec3::ZERO;

@@ -38,12 +38,12 @@ pub struct Bounds {
 }
 
 impl Bounds {
-    const EMPTY: Bounds = Bounds {
+    pub(super) const EMPTY: Bounds = Bounds {
         lo: Vec3::splat(f32::INFINITY),
         hi: Vec3::splat(f32::NEG_INFINITY),
     };
 
-    fn grow(&mut self, p: Vec3) {
+    pub(super) fn grow(&mut self, p: Vec3) {
         self.lo = self.lo.min(p);
         self.hi = self.hi.max(p);
     }

@@ -1320,13 +1320,9 @@ pub(super) mod tests {
                 Vec3::new(-0.5 + i, -1.0, -4.0 + j)
             })
             .collect();
-        let mut bounds = Bounds {
-            lo: Vec3::splat(f32::INFINITY),
-            hi: Vec3::splat(f32::NEG_INFINITY),
-        };
+        let mut bounds = Bounds::EMPTY;
         for p in &points {
-            bounds.lo = bounds.lo.min(*p);
-            bounds.hi = bounds.hi.max(*p);
+            bounds.grow(*p);
         }
         let slab = Slab::fit(&points, &vec![0; n * n], n, 0);
         assert!(slab.half_width < 1e-5, "{slab:?}");

@@ -1,6 +1,9 @@
 //! sRGB transfer functions and the preview tone map.
 
+use std::sync::OnceLock;
+
 use glam::Vec3;
+use rayon::prelude::*;
 
 /// Linear value in `[0, 1]` to its sRGB encoding (IEC 61966-2-1).
 pub fn srgb_encode(x: f32) -> f32 {
@@ -24,21 +27,104 @@ pub fn srgb_decode(x: f32) -> f32 {
 /// `2^exposure` (exposure in photographic stops), clipped to `[0, 1]` per
 /// channel, sRGB-encoded and rounded. Clipping rather than a global operator
 /// keeps previews of different frames directly comparable; NaN shows black.
+///
+/// Each value's byte is found among the 255 values where the encoding's
+/// rounding steps up ([`steps`]): the same byte as encoding it, without a
+/// power per channel, which made this take about as long as a frame's
+/// synthesis in the viewer.
 pub fn tonemap_srgb8(radiance: &[Vec3], exposure: f32) -> Vec<u8> {
+    const CHUNK: usize = 4096;
     let scale = exposure.exp2();
-    radiance
-        .iter()
-        .flat_map(|c| (*c * scale).to_array())
-        .map(|x| {
-            let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
-            (srgb_encode(x) * 255.0).round() as u8
+    let steps = steps();
+    let mut out = vec![0; 3 * radiance.len()];
+    out.par_chunks_mut(3 * CHUNK)
+        .zip(radiance.par_chunks(CHUNK))
+        .for_each(|(bytes, pixels)| {
+            for (b, c) in bytes
+                .iter_mut()
+                .zip(pixels.iter().flat_map(|c| (*c * scale).to_array()))
+            {
+                // NaN is below no step.
+                *b = steps.partition_point(|&s| s <= c) as u8;
+            }
+        });
+    out
+}
+
+/// A value's byte as the preview rounds its encoding (NaN black).
+fn encoded_byte(x: f32) -> u8 {
+    let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
+    (srgb_encode(x) * 255.0).round() as u8
+}
+
+/// For each byte `b` in `1..=255`, the least non-negative value whose
+/// encoding rounds to `b` or more (found by bisection of the values' bit
+/// patterns, which order non-negative floats).
+fn steps() -> &'static [f32; 255] {
+    static STEPS: OnceLock<[f32; 255]> = OnceLock::new();
+    STEPS.get_or_init(|| {
+        std::array::from_fn(|i| {
+            let b = i as u8 + 1;
+            let (mut lo, mut hi) = (0u32, 1.0f32.to_bits());
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if encoded_byte(f32::from_bits(mid)) >= b {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            f32::from_bits(lo)
         })
-        .collect()
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_preview_bytes_are_those_of_encoding_each_value() {
+        let steps = steps();
+        // Every value about each step, then values spread over the whole
+        // range, below it, above it and not a number.
+        let mut values: Vec<f32> = steps
+            .iter()
+            .flat_map(|s| {
+                let b = s.to_bits() as i64;
+                (b - 300..b + 300).map(|k| f32::from_bits(k.max(0) as u32))
+            })
+            .collect();
+        values.extend((0..=1_000_000).map(|k| k as f32 / 1e6));
+        values.extend((0..=1.0f32.to_bits()).step_by(61).map(f32::from_bits));
+        values.extend([
+            -1.0,
+            -0.0,
+            1.5,
+            1e30,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ]);
+        let radiance: Vec<Vec3> = values
+            .chunks(3)
+            .map(|c| {
+                Vec3::from_slice(&[c[0], *c.get(1).unwrap_or(&0.0), *c.get(2).unwrap_or(&0.0)])
+            })
+            .collect();
+        let bytes = tonemap_srgb8(&radiance, 0.0);
+        for (c, b) in radiance.iter().flat_map(|c| c.to_array()).zip(&bytes) {
+            assert_eq!(*b, encoded_byte(c), "value {c:e} ({:#x})", c.to_bits());
+        }
+        // Each step is where its byte begins.
+        for (i, s) in steps.iter().enumerate() {
+            assert_eq!(encoded_byte(*s), i as u8 + 1);
+            assert_eq!(encoded_byte(f32::from_bits(s.to_bits() - 1)), i as u8);
+        }
+        // The exposure scales before the encoding.
+        let c = [Vec3::new(0.1, 0.2, 0.4)];
+        assert_eq!(tonemap_srgb8(&c, 1.0), tonemap_srgb8(&[c[0] * 2.0], 0.0));
+    }
 
     #[test]
     fn srgb_round_trips_every_byte() {

@@ -736,21 +736,36 @@ fn blend_linear(a: &Accum, b: &Accum) -> Accum {
 /// The frame's pixels from what they gathered.
 fn write_pixels(scene: &Scene, poses: &[Affine3A], pixels: &[Accum], image: &mut RangeImage) {
     let cam = image.meta.camera.position;
+    let row = image.width.max(1) as usize;
     image
         .radiance
-        .par_iter_mut()
-        .zip(image.distance.par_iter_mut())
-        .zip(image.object_id.par_iter_mut())
-        .zip(image.primitive_id.par_iter_mut())
-        .zip(image.normal.par_iter_mut())
-        .zip(pixels.par_iter())
+        .par_chunks_mut(row)
+        .zip(image.distance.par_chunks_mut(row))
+        .zip(image.object_id.par_chunks_mut(row))
+        .zip(image.primitive_id.par_chunks_mut(row))
+        .zip(image.normal.par_chunks_mut(row))
+        .zip(pixels.par_chunks(row))
         .for_each(
             |(((((radiance, distance), object), primitive), normal), a)| {
-                if a.is_empty() {
-                    return;
+                // Neighbouring pixels mostly show one triangle: its normal is
+                // worked out once for the run.
+                let mut last: Option<((u32, u32), Option<Vec3>)> = None;
+                for (j, a) in a.iter().enumerate() {
+                    if a.is_empty() {
+                        continue;
+                    }
+                    radiance[j] = a.radiance / a.w;
+                    let key = (a.object, a.primitive);
+                    let n = match last {
+                        Some((k, n)) if k == key => n,
+                        _ => {
+                            let n = triangle_normal(scene, poses, a);
+                            last = Some((key, n));
+                            n
+                        }
+                    };
+                    (distance[j], object[j], primitive[j], normal[j]) = shown(cam, a, n);
                 }
-                *radiance = a.radiance / a.w;
-                (*distance, *object, *primitive, *normal) = surface(scene, poses, cam, a);
             },
         );
 }
@@ -759,18 +774,34 @@ fn write_pixels(scene: &Scene, poses: &[Affine3A], pixels: &[Accum], image: &mut
 /// primitive ids and the normal of its triangle at `poses`, turned towards
 /// the camera at `cam`; distance 0, no ids and a zero normal for sky.
 fn surface(scene: &Scene, poses: &[Affine3A], cam: Vec3, a: &Accum) -> (f32, u32, u32, Vec3) {
+    shown(cam, a, triangle_normal(scene, poses, a))
+}
+
+/// The unit normal at `poses` of the triangle `a` shows, unturned; `None`
+/// for sky and for a primitive its mesh does not hold.
+fn triangle_normal(scene: &Scene, poses: &[Affine3A], a: &Accum) -> Option<Vec3> {
+    if a.is_empty() || a.z >= SKY_Z {
+        return None;
+    }
+    let mesh = &scene.objects[a.object as usize].mesh;
+    let &[i, j, l] = mesh.triangles.get(a.primitive as usize)?;
+    let p = &mesh.positions;
+    let e = (p[j as usize] - p[i as usize]).cross(p[l as usize] - p[i as usize]);
+    Some(
+        poses[a.object as usize]
+            .transform_vector3(e)
+            .normalize_or_zero(),
+    )
+}
+
+/// [`surface`] from the triangle's normal `n` ([`triangle_normal`]).
+fn shown(cam: Vec3, a: &Accum, n: Option<Vec3>) -> (f32, u32, u32, Vec3) {
     if a.is_empty() || a.z >= SKY_Z {
         return (0.0, NO_HIT, NO_HIT, Vec3::ZERO);
     }
-    let mesh = &scene.objects[a.object as usize].mesh;
-    let Some(&[i, j, l]) = mesh.triangles.get(a.primitive as usize) else {
+    let Some(n) = n else {
         return (a.z, a.object, a.primitive, Vec3::ZERO);
     };
-    let p = &mesh.positions;
-    let e = (p[j as usize] - p[i as usize]).cross(p[l as usize] - p[i as usize]);
-    let n = poses[a.object as usize]
-        .transform_vector3(e)
-        .normalize_or_zero();
     let n = if n.dot(cam - a.point) < 0.0 { -n } else { n };
     (a.z, a.object, a.primitive, n)
 }

@@ -14,6 +14,8 @@
 //! shows the same face and holds no part of a light. No light is
 //! computed anew, and nothing changes away from lights.
 
+use std::ops::Range;
+
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -50,9 +52,9 @@ pub fn trace(
     let radiance = &image.radiance;
     let emissive = emissive(scene);
     let emits = |id: u32| emissive.get(id as usize).copied().unwrap_or(false);
-    let interior = interior(ids, w, h);
-    let lit = dilate(&light_pixels(&emissive, ids), w, h);
-    let traced: Vec<usize> = (0..ids.len()).into_par_iter().filter(|&k| lit[k]).collect();
+    let on_light = light_pixels(&emissive, ids);
+    let (lit, interior, window) = near_lights(&on_light, ids, w, h);
+    let traced: Vec<usize> = window.into_par_iter().filter(|&k| lit[k]).collect();
     let shading = SurfaceShading::new(scene, engine, t);
     let camera = image.meta.camera;
     let around = Around {
@@ -148,8 +150,7 @@ pub fn unmix_beside_lights(scene: &Scene, image: &mut RangeImage) -> usize {
     if !on_light.contains(&true) {
         return 0;
     }
-    let interior = interior(ids, w, h);
-    let lit = dilate(&on_light, w, h);
+    let (lit, interior, _) = near_lights(&on_light, ids, w, h);
     let around = Around {
         ids,
         interior: &interior,
@@ -176,6 +177,39 @@ pub fn unmix_beside_lights(scene: &Scene, image: &mut RangeImage) -> usize {
         image.radiance[k] = c;
     }
     count
+}
+
+/// Rows beyond the lights' that [`near_lights`] works out. [`Around`]
+/// reads rows up to [`REACH`] from a ray through a pixel beside a light (a
+/// row from the light; a corner ray may fall on the next row), and a
+/// pixel's interior depends on the ids up to two rows away: `REACH` + 4
+/// rows would do (the test of `near_lights` finds one fewer short), and
+/// two more are kept.
+const WINDOW: usize = REACH as usize + 6;
+
+/// Per pixel: whether it is at or beside a light (`on_light` grown by a
+/// pixel), and whether its 3 × 3 neighbourhood is free of changes of
+/// surface ([`interior`]). Both are worked out only in the rows within
+/// [`WINDOW`] of a light (the pixels returned last), the only ones
+/// [`Around`] reads: the whole frame took about as long as tracing the
+/// lights' rims.
+fn near_lights(
+    on_light: &[bool],
+    ids: &[u32],
+    w: usize,
+    h: usize,
+) -> (Vec<bool>, Vec<bool>, Range<usize>) {
+    let (mut lit, mut interior) = (vec![false; ids.len()], vec![false; ids.len()]);
+    let rows = || on_light.par_chunks(w.max(1)).map(|r| r.contains(&true));
+    let (Some(first), Some(last)) = (rows().position_first(|l| l), rows().position_last(|l| l))
+    else {
+        return (lit, interior, 0..0);
+    };
+    let (a, b) = (first.saturating_sub(WINDOW), (last + 1 + WINDOW).min(h));
+    let window = a * w..b * w;
+    lit[window.clone()].copy_from_slice(&dilate(&on_light[window.clone()], w, b - a));
+    interior[window.clone()].copy_from_slice(&self::interior(&ids[window.clone()], w, b - a));
+    (lit, interior, window)
 }
 
 /// Per pixel: whether it shows an object that `emissive` marks.
@@ -326,6 +360,42 @@ mod tests {
     use super::*;
     use crate::camera::{Camera, Projection};
     use crate::image::RangeMeta;
+
+    #[test]
+    fn masks_near_lights_are_those_of_the_whole_frame_where_they_are_read() {
+        let (w, h) = (37, 41);
+        // Rows a ray through a pixel beside the light (rows 17..=20) looks
+        // up.
+        let read = (17 - 1 - REACH as usize) * w..(20 + 2 + REACH as usize + 1) * w;
+        // Two surfaces meeting along each row's edge in turn (and a light,
+        // id 9), so that some edge lies just outside the rows worked out.
+        for edge in 0..h {
+            let ids: Vec<u32> = (0..w * h)
+                .map(|k| {
+                    let (x, y) = (k % w, k / w);
+                    if (17..=20).contains(&y) && (10..14).contains(&x) {
+                        9
+                    } else {
+                        (y > edge) as u32
+                    }
+                })
+                .collect();
+            let on_light: Vec<bool> = ids.iter().map(|&i| i == 9).collect();
+            let (lit, interior, window) = near_lights(&on_light, &ids, w, h);
+            assert!(window.start <= read.start && window.end >= read.end);
+            assert_eq!(lit, dilate(&on_light, w, h), "edge after row {edge}");
+            let whole = self::interior(&ids, w, h);
+            assert_eq!(
+                interior[read.clone()],
+                whole[read.clone()],
+                "edge after row {edge}"
+            );
+        }
+        // Without a light nothing is worked out.
+        let ids = vec![0; w * h];
+        let none = vec![false; w * h];
+        assert_eq!(near_lights(&none, &ids, w, h), (none.clone(), none, 0..0));
+    }
 
     /// An 8×8 view of the Cornell box's ceiling (radiance 1) with the light
     /// (40) on a 2×2 square in the middle; the ring of pixels around the

@@ -58,8 +58,16 @@ pub fn sky(
 /// beyond stay empty. Returns the number of pixels filled.
 pub fn background(buffer: &mut [Accum], width: u32, height: u32, bound: u16) -> usize {
     let (w, h) = (width as usize, height as usize);
+    // Rows before the first hole have nothing to fill: finding it on every
+    // core costs less than scanning them on one.
+    let Some(first) = buffer
+        .par_chunks(w.max(1))
+        .position_first(|row| row.iter().any(Accum::is_empty))
+    else {
+        return 0;
+    };
     let mut filled = 0;
-    for y in 0..h {
+    for y in first..h {
         for x in 0..w {
             let k = y * w + x;
             if !buffer[k].is_empty() {

@@ -386,14 +386,9 @@ impl Target {
         for (o, b) in &tile.moving {
             match moves.get(*o as usize).and_then(Option::as_ref) {
                 Some(m) => {
-                    let mut moved = Bounds {
-                        lo: Vec3::splat(f32::INFINITY),
-                        hi: Vec3::splat(f32::NEG_INFINITY),
-                    };
+                    let mut moved = Bounds::EMPTY;
                     for c in b.corners() {
-                        let p = m.transform_point3(c);
-                        moved.lo = moved.lo.min(p);
-                        moved.hi = moved.hi.max(p);
+                        moved.grow(m.transform_point3(c));
                     }
                     add(self.reach(&moved, false));
                 }

@@ -22,6 +22,7 @@ use crate::image::{RangeImage, RangeMeta, NO_HIT};
 use crate::scene::{Scene, ViewSpace};
 
 pub mod base;
+mod cells;
 mod fill;
 mod lights;
 mod reshade;

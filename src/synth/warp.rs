@@ -18,6 +18,7 @@ use half::{f16, slice::HalfFloatSliceExt};
 use rayon::prelude::*;
 
 use super::base::{Base, Bounds, Tile, SKY, TILE};
+use super::cells::{Cells, Facing, CELL};
 use crate::camera::{Camera, Projection};
 
 /// Depth of a pixel that sees nothing: farther than any surface.
@@ -528,7 +529,9 @@ pub fn warp(
                     splats,
                     hot,
                     alpha,
+                    cells,
                 } = scratch;
+                let mut summed = false;
                 hot.clear();
                 hot.resize(n, Hot::default());
                 alpha.clear();
@@ -544,11 +547,22 @@ pub fn warp(
                     let (i, t, reach) = items[item];
                     let pass = &passes[i as usize];
                     let (tile, base) = (&pass.base.tiles[t as usize], pass.base);
+                    // The band as the first pass left it: later ones are
+                    // mostly left out, and a cell settles many of their
+                    // tests at once.
+                    if cull && i > 0 && !summed {
+                        let rows = band.hot.len() as u32 / w;
+                        cells.build((w, h), (y0, rows), target.focal, |j| {
+                            let p = &band.hot[j];
+                            p.covered().then_some(p.z)
+                        });
+                        summed = true;
+                    }
                     if cull
                         && hidden(
                             target,
                             (tile, &pass.moves),
-                            band.hot,
+                            (band.hot, summed.then_some(&*cells)),
                             y0,
                             &reach,
                             settings.tolerance,
@@ -615,7 +629,7 @@ const SLAB_MARGIN: f32 = 0.01;
 fn hidden(
     target: &Target,
     (tile, moves): (&Tile, &[Option<Affine3A>]),
-    hot: &[Hot],
+    (hot, cells): (&[Hot], Option<&Cells>),
     y0: u32,
     reach: &Reach,
     eps: f32,
@@ -641,7 +655,10 @@ fn hidden(
     // the ray faces. Where the camera is within a slab, none bounds.
     let f = target.focal.unwrap_or(0.0);
     let c = &target.camera;
-    let mut slabs = [(0.0, 0.0, 0.0, 0.0); 4];
+    let mut slabs = [Facing {
+        gap: 0.0,
+        normal: Vec3::ZERO,
+    }; 4];
     let bounded = target.focal.is_some()
         && tile.slabs.len() <= slabs.len()
         && tile.slabs.iter().zip(&mut slabs).all(|((o, s), out)| {
@@ -651,44 +668,62 @@ fn hidden(
             };
             let g = s.offset - s.normal.dot(c.position);
             let sign = g.signum();
-            *out = (
-                (g.abs() - s.half_width) * (1.0 - SLAB_MARGIN),
-                sign * f * s.normal.dot(c.forward),
-                sign * s.normal.dot(c.right),
-                sign * s.normal.dot(c.up),
-            );
-            out.0 > 0.0
+            *out = Facing {
+                gap: (g.abs() - s.half_width) * (1.0 - SLAB_MARGIN),
+                normal: sign
+                    * Vec3::new(
+                        s.normal.dot(c.forward),
+                        s.normal.dot(c.right),
+                        s.normal.dot(c.up),
+                    ),
+            };
+            out.gap > 0.0
         });
     let slabs = &slabs[..if bounded { tile.slabs.len() } else { 0 }];
     let (hw, hh) = (0.5 * width as f32, 0.5 * c.height as f32);
-    (ya..yb).all(|y| {
-        let row = ((y - y0) * width) as usize;
-        let v = hh - (y as f32 + 0.5);
-        hot[row + xa as usize..row + xb as usize]
-            .iter()
-            .zip(xa..xb)
-            .all(|(p, x)| {
-                if !p.covered() {
-                    return false;
-                }
-                if p.z <= limit {
-                    return true;
-                }
-                // The depth to beat; past twice the nearest point's, no
-                // footprint's depth can be shown to reach it.
-                let beat = p.z * (1.0 - eps);
-                if slabs.is_empty() || beat > 2.0 * near {
-                    return false;
-                }
-                // Each slab's (1 − margin)·(|g| − δ)·|d| / (n·d) ≥ beat,
-                // squared to spare a root and a division.
-                let u = x as f32 + 0.5 - hw;
-                let length2 = f * f + u * u + v * v;
-                slabs.iter().all(|&(gap, nf, nr, nu)| {
-                    let facing = nf + nr * u + nu * v;
-                    facing > 0.0 && gap * gap * length2 >= (beat * facing).powi(2)
+    let cap = 2.0 * near;
+    // Whether rows `ya..yb`, columns `xa..xb` pass, pixel by pixel.
+    let pixels = |(ya, yb): (u32, u32), (xa, xb): (u32, u32)| {
+        (ya..yb).all(|y| {
+            let row = ((y - y0) * width) as usize;
+            let v = hh - (y as f32 + 0.5);
+            hot[row + xa as usize..row + xb as usize]
+                .iter()
+                .zip(xa..xb)
+                .all(|(p, x)| {
+                    if !p.covered() {
+                        return false;
+                    }
+                    if p.z <= limit {
+                        return true;
+                    }
+                    // The depth to beat; past twice the nearest point's, no
+                    // footprint's depth can be shown to reach it.
+                    let beat = p.z * (1.0 - eps);
+                    if slabs.is_empty() || beat > cap {
+                        return false;
+                    }
+                    // Each slab's gap·|d| / (n·d) ≥ beat, squared to spare
+                    // a root and a division.
+                    let u = x as f32 + 0.5 - hw;
+                    let length2 = f * f + u * u + v * v;
+                    slabs.iter().all(|s| {
+                        let facing = s.normal.dot(Vec3::new(f, u, v));
+                        facing > 0.0 && s.gap * s.gap * length2 >= (beat * facing).powi(2)
+                    })
                 })
-            })
+        })
+    };
+    let Some(cells) = cells else {
+        return pixels((ya, yb), (xa, xb));
+    };
+    // Cell by cell, the pixels of those that cannot settle it one by one.
+    (ya / CELL..=(yb - 1) / CELL).all(|cy| {
+        let rows = ((cy * CELL).max(ya), ((cy + 1) * CELL).min(yb));
+        (xa / CELL..=(xb - 1) / CELL).all(|cx| {
+            cells.hide((cx, cy - y0 / CELL), (limit, cap), eps, slabs)
+                || pixels(rows, ((cx * CELL).max(xa), ((cx + 1) * CELL).min(xb)))
+        })
     })
 }
 
@@ -1190,6 +1225,8 @@ struct Scratch {
     /// The band's pixels, and their sums of `alpha` where asked for.
     hot: Vec<Hot>,
     alpha: Vec<f32>,
+    /// The band's cells, once its first pass is deposited.
+    cells: Cells,
 }
 
 thread_local! {
@@ -1349,12 +1386,21 @@ pub(super) mod tests {
                 .collect()
         };
         let eps = 0.02;
+        // The same answers pixel by pixel and cell by cell.
+        let test = |tile: &Tile, hot: &[Hot]| {
+            let mut cells = Cells::default();
+            cells.build((64, 64), (0, 64), target.focal, |j| Some(hot[j].z));
+            let by_pixel = hidden(&target, (tile, &[]), (hot, None), 0, &reach, eps);
+            let by_cell = hidden(&target, (tile, &[]), (hot, Some(&cells)), 0, &reach, eps);
+            assert_eq!(by_pixel, by_cell);
+            by_pixel
+        };
         let behind = frame(1.0);
-        assert!(hidden(&target, (&tile, &[]), &behind, 0, &reach, eps));
+        assert!(test(&tile, &behind));
         let farther = frame(1.0 / (1.0 - 1.5 * eps));
-        assert!(!hidden(&target, (&tile, &[]), &farther, 0, &reach, eps));
+        assert!(!test(&tile, &farther));
         tile.slabs.clear();
-        assert!(!hidden(&target, (&tile, &[]), &behind, 0, &reach, eps));
+        assert!(!test(&tile, &behind));
     }
 
     /// A moving object's slab, moved with it, still holds its points.

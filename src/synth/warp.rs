@@ -1045,6 +1045,9 @@ fn deposit_splats(
     let y1 = y0 + band.hot.len() as u32 / fw;
     let eps = settings.tolerance;
     let cam = target.camera.position;
+    // Nearest first, a pixel takes one covering sample's radiance whole:
+    // weights by angle, time and area would scale it and divide out again.
+    let weighted = settings.blend == Blend::Average;
     let in_band = |px: i64, py: i64| px >= 0 && py >= y0 as i64 && px < fw as i64 && py < y1 as i64;
     for s in splats {
         let [e1, e2] = s.sides;
@@ -1094,17 +1097,20 @@ fn deposit_splats(
             continue;
         }
         // Weight: how close the base's ray is to the frame's ray, 1/sin of
-        // the angle between them (sky: the same direction).
-        let weight = if s.sky {
-            MAX_WEIGHT
+        // the angle between them (sky: the same direction), times the
+        // weight in time.
+        let weight = if !weighted {
+            1.0
+        } else if s.sky {
+            MAX_WEIGHT * s.in_time
         } else {
             let k = s.pixel as usize;
             let (a, b) = (base.points[k] - base.camera.position, s.point - cam);
             let sin2 = a.cross(b).length_squared() / (a.length_squared() * b.length_squared());
-            (1.0 / sin2).sqrt().min(MAX_WEIGHT)
+            (1.0 / sin2).sqrt().min(MAX_WEIGHT) * s.in_time
         };
         let sample = Sample {
-            weight: weight * s.in_time,
+            weight,
             radiance: s.radiance,
             alpha: s.alpha,
             pixel: s.pixel,
@@ -1140,7 +1146,11 @@ fn deposit_splats(
                 // footprint is smaller than a pixel.
                 let covers =
                     (0.0..1.0).contains(&a) && (0.0..1.0).contains(&b) || (px, py) == (fx, fy);
-                let area = oy * overlap(px, bl.x, bh.x);
+                let area = if weighted {
+                    oy * overlap(px, bl.x, bh.x)
+                } else {
+                    1.0
+                };
                 // Slivers below the rounding of positions are no overlap; a
                 // covering footprint's sample counts even where the box
                 // approximating it misses the pixel.

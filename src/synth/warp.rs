@@ -1129,13 +1129,15 @@ fn deposit_splats(
         // as the reference's pixels integrate the scene), not by whose
         // centres fall in it, which shifts edges by up to half a pixel. The
         // overlap is that of an axis-aligned box with the footprint's area
-        // and the proportions of its bounds.
-        let half = 0.5 * extent * (det.abs() / (extent.x * extent.y)).sqrt();
-        let (bl, bh) = (s.px - half, s.px + half);
+        // and the proportions of its bounds (not needed nearest first).
+        let area_box = weighted.then(|| {
+            let half = 0.5 * extent * (det.abs() / (extent.x * extent.y)).sqrt();
+            (s.px - half, s.px + half)
+        });
         let overlap = |p: i64, l: f32, h: f32| (h.min(p as f32 + 1.0) - l.max(p as f32)).max(0.0);
         let inv = 1.0 / det;
         for py in ya..=yb {
-            let oy = overlap(py, bl.y, bh.y);
+            let oy = area_box.map(|(bl, bh)| overlap(py, bl.y, bh.y));
             for px in xa..=xb {
                 let c = Vec2::new(px as f32 + 0.5, py as f32 + 0.5) - origin;
                 // Parallelogram coordinates, half-open so that each pixel
@@ -1146,10 +1148,9 @@ fn deposit_splats(
                 // footprint is smaller than a pixel.
                 let covers =
                     (0.0..1.0).contains(&a) && (0.0..1.0).contains(&b) || (px, py) == (fx, fy);
-                let area = if weighted {
-                    oy * overlap(px, bl.x, bh.x)
-                } else {
-                    1.0
+                let area = match (area_box, oy) {
+                    (Some((bl, bh)), Some(oy)) => oy * overlap(px, bl.x, bh.x),
+                    _ => 1.0,
                 };
                 // Slivers below the rounding of positions are no overlap; a
                 // covering footprint's sample counts even where the box

@@ -13,6 +13,7 @@ use rangewalk::accel::{self, Backend, InstancedEngine};
 use rangewalk::bake::{self, BaseProjection, IndirectSource, Shard};
 use rangewalk::camera::{Camera, Projection};
 use rangewalk::image::{self, RangeImage};
+use rangewalk::plan::ViewFitness;
 use rangewalk::radiosity::lookup::IrradianceCache;
 use rangewalk::radiosity::temporal::{self, TimeSeries};
 use rangewalk::radiosity::{self, bake as radiosity_bake, Quality, Simplified};
@@ -599,6 +600,9 @@ struct PlanArgs {
     /// One master time list for every view (the paper's choice).
     #[arg(long)]
     master_list: bool,
+    /// What a view-space cell's fitness measures.
+    #[arg(long, value_parser = cli::choice::<ViewFitness>(), default_value_t = ViewFitness::Ids)]
+    view_fitness: ViewFitness,
     #[arg(long, value_parser = cli::choice::<Backend>(), default_value_t = Backend::default_available())]
     backend: Backend,
     /// Replace the scene's view space by the segment `x,y,z:x,y,z`.
@@ -631,6 +635,7 @@ fn plan(args: PlanArgs) -> Result<()> {
         quality,
         resolution: args.resolution,
         master_list: args.master_list,
+        view_fitness: args.view_fitness,
     };
     let p = plan::make(&s, engine.as_mut(), &options)?;
     let list = |ts: &[f32]| {
@@ -661,6 +666,16 @@ fn plan(args: PlanArgs) -> Result<()> {
         p.light_times.len(),
         list(&p.light_times)
     );
+    if !p.cells.is_empty() {
+        println!(
+            "view-space cells, fitness by {}",
+            match p.view_fitness {
+                plan::ViewFitness::Ids => "ids (the fraction of directions every corner sees one object in)",
+                plan::ViewFitness::Coverage =>
+                    "coverage (the fraction of the surfaces seen from a cell's centre that every corner sees)",
+            }
+        );
+    }
     for c in &p.cells {
         println!(
             "  cell depth {} views {:?}: {}",
@@ -782,6 +797,9 @@ struct BakeOptions {
     /// One master time list for every view (the paper's choice).
     #[arg(long)]
     master_list: bool,
+    /// What a view-space cell's fitness measures.
+    #[arg(long, value_parser = cli::choice::<ViewFitness>(), default_value_t = ViewFitness::Ids)]
+    view_fitness: ViewFitness,
 }
 
 impl BakeOptions {
@@ -828,6 +846,7 @@ impl BakeOptions {
         if let Some(r) = self.resolution {
             push("--resolution", r.to_string());
         }
+        push("--view-fitness", self.view_fitness.to_string());
         if self.master_list {
             w.push("--master-list".into());
         }
@@ -863,6 +882,7 @@ fn bake_command(args: BakeArgs) -> Result<()> {
         quality,
         resolution: args.options.resolution,
         master_list: args.options.master_list,
+        view_fitness: args.options.view_fitness,
     };
     let plan = |e: &mut dyn InstancedEngine| plan::make(&s, e, &options);
     let summary = if args.prepare {

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use rangewalk::accel::Backend;
 use rangewalk::eval::motion::{self, MotionArgs};
 use rangewalk::eval::synthesis::{CommonArgs, SequenceArgs};
+use rangewalk::plan::ViewFitness;
 use rangewalk::synth::{Blend, Fill, TimeInterp};
 
 fn args(out: PathBuf) -> MotionArgs {
@@ -22,6 +23,7 @@ fn args(out: PathBuf) -> MotionArgs {
             supersample: 2,
             blend: Blend::Average,
             backend: Backend::default_available(),
+            view_fitness: ViewFitness::Ids,
             no_flip: true,
         },
         camera: "main".into(),

@@ -10,7 +10,7 @@ use super::scene::rw_scene;
 use super::status::rw_status;
 use crate::accel::{self, Backend};
 use crate::bake::{self, Bake, BaseProjection, IndirectSource, Shard};
-use crate::plan::{self, PlanOptions};
+use crate::plan::{self, PlanOptions, ViewFitness};
 use crate::radiosity::{Quality, DEFAULT_QUALITY};
 use crate::scene::Scene;
 use crate::synth::{self, Kept};
@@ -203,6 +203,7 @@ pub unsafe extern "C" fn rw_bake_run(
             quality: Quality::new(settings.quality).map_err(failed)?,
             resolution: None,
             master_list: false,
+            view_fitness: ViewFitness::Ids,
         };
         let mut observe = |fraction: f32| match progress {
             // SAFETY: the caller gives a function that takes `userdata`.

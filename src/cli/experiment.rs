@@ -8,6 +8,7 @@ use rangewalk::accel::Backend;
 use rangewalk::eval::walkthrough::{self, BakeViews};
 use rangewalk::eval::{experiment, motion, synthesis, views};
 use rangewalk::image;
+use rangewalk::plan::ViewFitness;
 use rangewalk::scene::ViewSpace;
 use rangewalk::synth::{Blend, Fill, TimeInterp};
 
@@ -197,6 +198,9 @@ pub struct Common {
     pub blend: Blend,
     #[arg(long, value_parser = choice::<Backend>(), default_value_t = Backend::default_available())]
     pub backend: Backend,
+    /// What the planner's view-space cells must reach `--quality` in.
+    #[arg(long, value_parser = choice::<ViewFitness>(), default_value_t = ViewFitness::Ids)]
+    pub view_fitness: ViewFitness,
     /// Leave out the FLIP column (when the Python environment of `make deps`
     /// is not installed).
     #[arg(long)]
@@ -216,6 +220,7 @@ impl From<Common> for synthesis::CommonArgs {
             supersample: a.supersample,
             blend: a.blend,
             backend: a.backend,
+            view_fitness: a.view_fitness,
             no_flip: a.no_flip,
         }
     }

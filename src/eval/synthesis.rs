@@ -25,7 +25,7 @@ use crate::accel::{self, Backend, InstancedEngine};
 use crate::bake::{self, Bake, BaseProjection, IndirectSource, Manifest, Shard};
 use crate::camera::Camera;
 use crate::image::NO_HIT;
-use crate::plan::{self, Plan, PlanOptions};
+use crate::plan::{self, Plan, PlanOptions, ViewFitness};
 use crate::radiosity::Quality;
 use crate::scene::hash::ContentHash;
 use crate::scene::Scene;
@@ -63,6 +63,8 @@ pub struct CommonArgs {
     /// How the samples of several bases meet in a pixel.
     pub blend: Blend,
     pub backend: Backend,
+    /// What the planner's view-space cells must reach the quality in.
+    pub view_fitness: ViewFitness,
     /// Leave out the FLIP column (when the Python environment of `make deps`
     /// is not installed).
     pub no_flip: bool,
@@ -196,6 +198,7 @@ pub fn plan_timed(
     scene: &Scene,
     engine: &mut dyn InstancedEngine,
     q: Quality,
+    view_fitness: ViewFitness,
 ) -> Result<(Plan, f64)> {
     let start = Instant::now();
     let plan = plan::make(
@@ -205,6 +208,7 @@ pub fn plan_timed(
             quality: q,
             resolution: None,
             master_list: false,
+            view_fitness,
         },
     )?;
     Ok((plan, start.elapsed().as_secs_f64()))
@@ -739,7 +743,7 @@ impl Sequence<'_> {
     ) -> Result<SequenceQuality> {
         let tag = format!("q = {}", q.get());
         engine.set_transforms(&self.scene.at(self.scene.animation.start))?;
-        let (plan, plan_s) = plan_timed(self.scene, engine, q)?;
+        let (plan, plan_s) = plan_timed(self.scene, engine, q, self.common.view_fitness)?;
         let baked = choose(&plan);
         eprintln!(
             "{tag}: {} view(s), {} image(s) planned ({plan_s:.3} s); baking {} view(s)",

@@ -189,7 +189,7 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
     for &q in &setup.qualities {
         let tag = format!("q = {}", q.get());
         engine.set_transforms(&scene.at(time))?;
-        let (plan, plan_s) = plan_timed(&scene, engine.as_mut(), q)?;
+        let (plan, plan_s) = plan_timed(&scene, engine.as_mut(), q, c.view_fitness)?;
         let along: Vec<f32> = plan
             .views
             .iter()

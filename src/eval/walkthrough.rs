@@ -645,6 +645,7 @@ mod tests {
                     supersample: 2,
                     blend: Blend::Average,
                     backend: Backend::Bvh,
+                    view_fitness: crate::plan::ViewFitness::Ids,
                     no_flip: true,
                 },
                 path: "walk".into(),

@@ -19,6 +19,7 @@ use crate::accel::{InstancedEngine, RayEngine};
 use crate::radiosity::Quality;
 use crate::scene::Scene;
 
+pub mod coverage;
 pub mod idimage;
 pub mod lights;
 pub mod times;
@@ -52,6 +53,9 @@ pub struct Plan {
     /// The cameras direct light was judged from.
     #[serde(default)]
     pub lights: Vec<String>,
+    /// What the cells' fitness measured.
+    #[serde(default)]
+    pub view_fitness: ViewFitness,
     /// The view-space cells tested, in the order tested.
     #[serde(default)]
     pub cells: Vec<CellTest>,
@@ -87,6 +91,34 @@ pub struct PlanOptions {
     /// One master list for all views (the paper's choice) instead of a
     /// list per view.
     pub master_list: bool,
+    /// What a view-space cell's fitness measures.
+    pub view_fitness: ViewFitness,
+}
+
+/// What decides whether a view-space cell is split.
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::Display,
+    strum::EnumString,
+    strum::IntoStaticStr,
+    strum::VariantArray,
+    strum::EnumMessage,
+)]
+#[serde(rename_all = "lowercase")]
+#[strum(serialize_all = "lowercase")]
+pub enum ViewFitness {
+    /// The fraction of directions in which every corner sees the same object (the paper's).
+    #[default]
+    Ids,
+    /// The fraction of the surfaces seen from the cell's centre that some corner sees: what a frame inside the cell would not find in its bases is a hole.
+    Coverage,
 }
 
 /// Smallest and largest id-image side accepted.
@@ -173,7 +205,14 @@ pub fn make(
     let times: Vec<f32> = tested.iter().map(|&k| frames.time(k)).collect();
     let (positions, cells, images) = match &scene.view_space {
         Some(space) => {
-            let s = views::subdivide(scene, engine, space, &times, q, size)?;
+            let s = views::subdivide(
+                scene,
+                engine,
+                space,
+                &times,
+                (q, options.view_fitness),
+                size,
+            )?;
             if q == 0.0 {
                 skipped.push(
                     "quality 0: the view space's corners, no id-images for base views".into(),
@@ -272,6 +311,7 @@ pub fn make(
         resolution: size,
         master_list: options.master_list,
         lights: light.labels,
+        view_fitness: options.view_fitness,
         cells,
         intervals,
     })

@@ -12,7 +12,9 @@ use anyhow::{Context, Result};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
+use super::coverage::coverage;
 use super::idimage::{self, fitness, IdImage, IdView};
+use super::ViewFitness;
 use crate::accel::InstancedEngine;
 use crate::camera::{Camera, Projection};
 use crate::scene::{Scene, ViewSpace};
@@ -103,6 +105,16 @@ impl Cell {
         self.offsets(dims, self.size)
     }
 
+    /// The lattice point halfway along every axis (cells that can be split
+    /// have an even side).
+    fn centre(&self, dims: usize) -> [u32; 3] {
+        let mut c = self.origin;
+        for k in c.iter_mut().take(dims) {
+            *k += self.size / 2;
+        }
+        c
+    }
+
     fn children(&self, dims: usize) -> Vec<Cell> {
         let half = self.size / 2;
         self.offsets(dims, half)
@@ -129,14 +141,16 @@ impl Cell {
     }
 }
 
-/// Subdivides `space` from its corners while a cell's corner views agree
-/// on less than a fraction `q` of their pixels at any of `times`.
+/// Subdivides `space` from its corners while a cell's fitness is below
+/// `q` at any of `times`: the fraction of pixels its corner views agree on
+/// ([`ViewFitness::Ids`]), or of the surfaces seen from its centre that a
+/// corner sees ([`ViewFitness::Coverage`]).
 pub fn subdivide(
     scene: &Scene,
     engine: &mut dyn InstancedEngine,
     space: &ViewSpace,
     times: &[f32],
-    q: f32,
+    (q, measure): (f32, ViewFitness),
     size: u32,
 ) -> Result<Subdivided> {
     let lattice = Lattice::new(space);
@@ -163,28 +177,52 @@ pub fn subdivide(
         // Quality 0 accepts any fitness, and a cell at the depth limit
         // cannot be split: neither needs id-images.
         let testable = |c: &Cell| q > 0.0 && c.depth < lattice.depth && dims > 0;
-        let needed: BTreeSet<[u32; 3]> = frontier
-            .iter()
-            .filter(|c| testable(c))
-            .flat_map(|c| c.corners(dims))
-            .collect();
+        let needed: BTreeSet<[u32; 3]> = match measure {
+            ViewFitness::Ids => frontier
+                .iter()
+                .filter(|c| testable(c))
+                .flat_map(|c| c.corners(dims))
+                .collect(),
+            ViewFitness::Coverage => frontier
+                .iter()
+                .filter(|c| testable(c))
+                .map(|c| c.centre(dims))
+                .collect(),
+        };
         let mut lowest = vec![1.0f32; frontier.len()];
         if !needed.is_empty() {
             for &t in times {
                 engine
                     .set_transforms(&scene.at(t))
                     .with_context(|| format!("posing the scene at t = {t}"))?;
-                let mut shot: BTreeMap<[u32; 3], IdImage> = BTreeMap::new();
-                for &c in &needed {
-                    let camera = sphere(lattice.position(c), size)?;
-                    shot.insert(c, idimage::render(&*engine, &IdView::Camera(camera)));
-                }
-                images += shot.len();
-                for (cell, low) in frontier.iter().zip(lowest.iter_mut()) {
-                    if testable(cell) {
-                        let set: Vec<&IdImage> =
-                            cell.corners(dims).iter().map(|c| &shot[c]).collect();
-                        *low = low.min(fitness(&set));
+                images += needed.len();
+                match measure {
+                    ViewFitness::Ids => {
+                        let mut shot: BTreeMap<[u32; 3], IdImage> = BTreeMap::new();
+                        for &c in &needed {
+                            let camera = sphere(lattice.position(c), size)?;
+                            shot.insert(c, idimage::render(&*engine, &IdView::Camera(camera)));
+                        }
+                        for (cell, low) in frontier.iter().zip(lowest.iter_mut()) {
+                            if testable(cell) {
+                                let set: Vec<&IdImage> =
+                                    cell.corners(dims).iter().map(|c| &shot[c]).collect();
+                                *low = low.min(fitness(&set));
+                            }
+                        }
+                    }
+                    ViewFitness::Coverage => {
+                        for (cell, low) in frontier.iter().zip(lowest.iter_mut()) {
+                            if testable(cell) {
+                                let centre = sphere(lattice.position(cell.centre(dims)), size)?;
+                                let corners: Vec<Vec3> = cell
+                                    .corners(dims)
+                                    .iter()
+                                    .map(|&c| lattice.position(c))
+                                    .collect();
+                                *low = low.min(coverage(&*engine, &centre, &corners));
+                            }
+                        }
                     }
                 }
             }

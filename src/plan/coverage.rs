@@ -61,31 +61,21 @@ pub fn coverage(engine: &dyn RayEngine, centre: &Camera, corners: &[Vec3]) -> f3
                 if seen.is_empty() {
                     break;
                 }
+                // A corner behind the surface (as seen from the centre)
+                // sees its back, not what the centre sees.
+                seen.retain(|&(p, n)| (corner - p).dot(n) * (centre.position - p).dot(n) > 0.0);
                 shadow.clear();
-                let mut facing = Vec::with_capacity(seen.len());
-                for &(p, n) in &seen {
-                    let to_corner = corner - p;
-                    // A corner behind the surface (as seen from the
-                    // centre) sees its back, not what the centre sees.
-                    let same_side = to_corner.dot(n) * (centre.position - p).dot(n) > 0.0;
-                    facing.push(same_side);
-                    if same_side {
-                        let origin = offset_origin(p, n, to_corner);
-                        let mut ray = Ray::new(origin, corner - origin);
-                        ray.tmax = 1.0 - SHORT_OF_CORNER;
-                        shadow.push(ray);
-                    }
-                }
+                shadow.extend(seen.iter().map(|&(p, n)| {
+                    let origin = offset_origin(p, n, corner - p);
+                    let mut ray = Ray::new(origin, corner - origin);
+                    ray.tmax = 1.0 - SHORT_OF_CORNER;
+                    ray
+                }));
                 blocked.clear();
                 blocked.resize(shadow.len(), true);
                 engine.occluded_batch(&shadow, &mut blocked);
                 let mut verdicts = blocked.iter();
-                let mut k = 0;
-                seen.retain(|_| {
-                    let keep = facing[k] && !*verdicts.next().expect("one verdict a facing point");
-                    k += 1;
-                    keep
-                });
+                seen.retain(|_| !*verdicts.next().expect("one verdict a point"));
             }
             let sky = hits.iter().filter(|h| h.is_none()).count();
             (sky + seen.len(), rays.len())

@@ -117,7 +117,7 @@ pub enum ViewFitness {
     /// The fraction of directions in which every corner sees the same object (the paper's).
     #[default]
     Ids,
-    /// The fraction of the surfaces seen from the cell's centre that some corner sees: what a frame inside the cell would not find in its bases is a hole.
+    /// The fraction of the surfaces seen from the cell's centre that every corner sees (beyond the paper): what its bases do not see, a frame inside the cell cannot show.
     Coverage,
 }
 

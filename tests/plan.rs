@@ -580,18 +580,21 @@ fn cli_writes_the_plan_and_names_bad_values() {
     let out = dir.path().join("plan.json");
     let scene = scenes_dir().join("cornell-box/scene.toml");
     let scene = scene.to_str().unwrap();
-    let r = rangewalk(&[
-        "plan",
-        scene,
-        "--quality",
-        "0.6",
-        "--resolution",
-        "16",
-        "--view-segment",
-        "-100,273,-800:500,273,-800",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let plan_to_out = |extra: &[&str]| {
+        let mut args = vec![
+            "plan",
+            scene,
+            "--quality",
+            "0.6",
+            "--resolution",
+            "16",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        rangewalk(&args)
+    };
+    let r = plan_to_out(&["--view-segment", "-100,273,-800:500,273,-800"]);
     let stdout = String::from_utf8_lossy(&r.stdout);
     assert!(
         r.status.success(),
@@ -606,18 +609,7 @@ fn cli_writes_the_plan_and_names_bad_values() {
     assert_eq!(p.views[0].position, Vec3::new(-100.0, 273.0, -800.0));
     assert_eq!(p.resolution, 16);
     assert_eq!(p.view_fitness, ViewFitness::Ids);
-    let r = rangewalk(&[
-        "plan",
-        scene,
-        "--quality",
-        "0.6",
-        "--resolution",
-        "16",
-        "--view-fitness",
-        "coverage",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let r = plan_to_out(&["--view-fitness", "coverage"]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert_eq!(
         Plan::load(&out).unwrap().view_fitness,

@@ -19,6 +19,7 @@ use rangewalk::radiosity::temporal::{self, TimeSeries};
 use rangewalk::radiosity::{self, bake as radiosity_bake, Quality, Simplified};
 use rangewalk::render::{self, multipass, RenderSettings, RenderStats};
 use rangewalk::scene::{Bsdf, Light, Scene};
+use strum::EnumMessage;
 
 #[derive(Parser)]
 #[command(
@@ -668,12 +669,9 @@ fn plan(args: PlanArgs) -> Result<()> {
     );
     if !p.cells.is_empty() {
         println!(
-            "view-space cells, fitness by {}",
-            match p.view_fitness {
-                plan::ViewFitness::Ids => "ids (the fraction of directions every corner sees one object in)",
-                plan::ViewFitness::Coverage =>
-                    "coverage (the fraction of the surfaces seen from a cell's centre that every corner sees)",
-            }
+            "view-space cells, fitness by {}: {}",
+            p.view_fitness,
+            p.view_fitness.get_documentation().unwrap_or_default()
         );
     }
     for c in &p.cells {

@@ -143,8 +143,8 @@ impl Cell {
 
 /// Subdivides `space` from its corners while a cell's fitness is below
 /// `q` at any of `times`: the fraction of pixels its corner views agree on
-/// ([`ViewFitness::Ids`]), or of the surfaces seen from its centre that a
-/// corner sees ([`ViewFitness::Coverage`]).
+/// ([`ViewFitness::Ids`]), or of the surfaces seen from its centre that
+/// every corner sees ([`ViewFitness::Coverage`]).
 pub fn subdivide(
     scene: &Scene,
     engine: &mut dyn InstancedEngine,
@@ -177,53 +177,51 @@ pub fn subdivide(
         // Quality 0 accepts any fitness, and a cell at the depth limit
         // cannot be split: neither needs id-images.
         let testable = |c: &Cell| q > 0.0 && c.depth < lattice.depth && dims > 0;
-        let needed: BTreeSet<[u32; 3]> = match measure {
-            ViewFitness::Ids => frontier
-                .iter()
-                .filter(|c| testable(c))
-                .flat_map(|c| c.corners(dims))
-                .collect(),
-            ViewFitness::Coverage => frontier
-                .iter()
-                .filter(|c| testable(c))
-                .map(|c| c.centre(dims))
-                .collect(),
-        };
+        // The paper's fitness compares the corners' id-images, which
+        // neighbouring cells share; coverage looks from each cell's centre.
+        let needed: BTreeSet<[u32; 3]> = frontier
+            .iter()
+            .filter(|c| testable(c))
+            .flat_map(|c| match measure {
+                ViewFitness::Ids => c.corners(dims),
+                ViewFitness::Coverage => vec![c.centre(dims)],
+            })
+            .collect();
         let mut lowest = vec![1.0f32; frontier.len()];
         if !needed.is_empty() {
             for &t in times {
                 engine
                     .set_transforms(&scene.at(t))
                     .with_context(|| format!("posing the scene at t = {t}"))?;
+                let mut shot: BTreeMap<[u32; 3], IdImage> = BTreeMap::new();
+                if measure == ViewFitness::Ids {
+                    for &c in &needed {
+                        let camera = sphere(lattice.position(c), size)?;
+                        shot.insert(c, idimage::render(&*engine, &IdView::Camera(camera)));
+                    }
+                }
                 images += needed.len();
-                match measure {
-                    ViewFitness::Ids => {
-                        let mut shot: BTreeMap<[u32; 3], IdImage> = BTreeMap::new();
-                        for &c in &needed {
-                            let camera = sphere(lattice.position(c), size)?;
-                            shot.insert(c, idimage::render(&*engine, &IdView::Camera(camera)));
-                        }
-                        for (cell, low) in frontier.iter().zip(lowest.iter_mut()) {
-                            if testable(cell) {
-                                let set: Vec<&IdImage> =
-                                    cell.corners(dims).iter().map(|c| &shot[c]).collect();
-                                *low = low.min(fitness(&set));
-                            }
-                        }
+                for (cell, low) in frontier.iter().zip(lowest.iter_mut()) {
+                    if !testable(cell) {
+                        continue;
                     }
-                    ViewFitness::Coverage => {
-                        for (cell, low) in frontier.iter().zip(lowest.iter_mut()) {
-                            if testable(cell) {
-                                let centre = sphere(lattice.position(cell.centre(dims)), size)?;
-                                let corners: Vec<Vec3> = cell
-                                    .corners(dims)
-                                    .iter()
-                                    .map(|&c| lattice.position(c))
-                                    .collect();
-                                *low = low.min(coverage(&*engine, &centre, &corners));
-                            }
+                    let f = match measure {
+                        ViewFitness::Ids => {
+                            let set: Vec<&IdImage> =
+                                cell.corners(dims).iter().map(|c| &shot[c]).collect();
+                            fitness(&set)
                         }
-                    }
+                        ViewFitness::Coverage => {
+                            let centre = sphere(lattice.position(cell.centre(dims)), size)?;
+                            let corners: Vec<Vec3> = cell
+                                .corners(dims)
+                                .iter()
+                                .map(|&c| lattice.position(c))
+                                .collect();
+                            coverage(&*engine, &centre, &corners)
+                        }
+                    };
+                    *low = low.min(f);
                 }
             }
         }

@@ -54,6 +54,7 @@ fn main() -> Result<()> {
         let (frame, stats) = synth.frame(&camera, 0.0, &options)?;
         let sum: f64 = frame.radiance.iter().map(|r| r.element_sum() as f64).sum();
         summary = format!("radiance sum {sum:.6}, {} holes", stats.holes);
+        synth.recycle(frame);
     }
     let per = start.elapsed().as_secs_f64() * 1e3 / frames.max(1) as f64;
     println!("{summary}; {per:.2} ms a frame");

@@ -169,6 +169,8 @@ pub struct Synthesizer<'a> {
     /// The z-buffers of the last frame, kept so that the next one does not
     /// fault in tens of megabytes of fresh pages (projection clears them).
     buffers: [Vec<Accum>; 2],
+    /// A frame its caller gave back ([`Synthesizer::recycle`]).
+    spare: Option<RangeImage>,
 }
 
 /// Memory kept for bases by default: eight 2,600² bases fit.
@@ -213,6 +215,7 @@ impl<'a> Synthesizer<'a> {
             cache: kept.cache,
             engine: kept.engine,
             buffers: kept.buffers,
+            spare: None,
         }
     }
 
@@ -227,6 +230,19 @@ impl<'a> Synthesizer<'a> {
 
     pub fn cache(&self) -> &BaseCache {
         &self.cache
+    }
+
+    /// Takes back a frame its caller is done with: the next frame of its
+    /// size is written into its planes rather than new ones, which cost
+    /// about a millisecond of a 512² frame to fault in and fill.
+    pub fn recycle(&mut self, frame: RangeImage) {
+        self.spare = Some(frame);
+    }
+
+    /// The recycled frame if it is `camera`'s size.
+    fn spare_for(&mut self, camera: &Camera) -> Option<RangeImage> {
+        self.spare
+            .take_if(|i| (i.width, i.height) == (camera.width, camera.height))
     }
 
     /// Base views nearest `position` first, at most `count`.
@@ -313,12 +329,15 @@ impl<'a> Synthesizer<'a> {
         let (fine_image, mut stats) = self.subpixels(&fine_camera, t, &fine, reshade)?;
         let start = Instant::now();
         let poses = self.scene.at(t);
+        let spare = self.spare_for(camera);
+        let new_image = |meta| blank(spare, meta);
         let buffer = &self.buffers[0];
         let seen = |j: usize| !buffer[j].is_empty();
         let (mut image, holes) = match &fine_image {
             Some(f) => downsample(
                 self.scene,
                 &poses,
+                new_image,
                 (camera, k, &f.meta),
                 seen,
                 |j| f.radiance[j],
@@ -338,6 +357,7 @@ impl<'a> Synthesizer<'a> {
                 downsample(
                     self.scene,
                     &poses,
+                    new_image,
                     (camera, k, &meta),
                     seen,
                     |j| buffer[j].radiance / buffer[j].w,
@@ -446,10 +466,15 @@ impl<'a> Synthesizer<'a> {
             ..FrameStats::default()
         };
         let background = matches!(opts.fill, Fill::Background | Fill::Both);
-        let finish = |buffer: &mut Vec<Accum>, stats: &mut FrameStats| {
-            if background {
-                stats.filled += fill::background(buffer, w, h, opts.fill_reach);
+        // The holes a buffer has left after the sky's; background fill
+        // fills some of them.
+        let finish = |buffer: &mut Vec<Accum>, holes: usize, stats: &mut FrameStats| {
+            if background && holes > 0 {
+                let filled = fill::background(buffer, w, h, opts.fill_reach);
+                stats.filled += filled;
+                return holes - filled;
             }
+            holes
         };
         let [mut first, mut second] = std::mem::take(&mut self.buffers);
         // Stale contents are cleared band by band as they are projected.
@@ -472,17 +497,30 @@ impl<'a> Synthesizer<'a> {
                     .collect()
             };
             let (lo, hi) = (passes(false), passes(true));
-            stats.hidden += warp::warp(&target, &lo, &settings, &mut first);
-            stats.hidden += warp::warp(&target, &hi, &settings, &mut second);
-            if background {
-                stats.sky += self.open_to_sky(camera, t, &mut [&mut first, &mut second])?;
+            let mut holes = [0; 2];
+            for (k, (passes, buffer)) in [(&lo, &mut first), (&hi, &mut second)]
+                .into_iter()
+                .enumerate()
+            {
+                let warped = warp::warp(&target, passes, &settings, buffer);
+                stats.hidden += warped.hidden;
+                holes[k] = warped.holes;
+                if background {
+                    let sky = self.open_to_sky(camera, t, buffer, holes[k])?;
+                    stats.sky += sky;
+                    holes[k] = finish(buffer, holes[k] - sky, &mut stats);
+                }
             }
-            finish(&mut first, &mut stats);
-            finish(&mut second, &mut stats);
             first
                 .par_iter_mut()
                 .zip(&second)
                 .for_each(|(a, b)| *a = blend_linear(a, b));
+            // A pixel is a hole where both times left one.
+            stats.holes = if holes.contains(&0) {
+                0
+            } else {
+                first.par_iter().filter(|a| a.is_empty()).count()
+            };
             first
         } else {
             // A sample of the other time still claims its pixel (what a
@@ -518,21 +556,24 @@ impl<'a> Synthesizer<'a> {
                     twin: twin_of(i),
                 })
                 .collect();
-            stats.hidden += warp::warp(&target, &passes, &settings, &mut first);
+            let warped = warp::warp(&target, &passes, &settings, &mut first);
+            stats.hidden += warped.hidden;
+            stats.holes = warped.holes;
             if background {
-                stats.sky += self.open_to_sky(camera, t, &mut [&mut first])?;
+                let sky = self.open_to_sky(camera, t, &mut first, stats.holes)?;
+                stats.sky += sky;
+                stats.holes = finish(&mut first, stats.holes - sky, &mut stats);
             }
-            finish(&mut first, &mut stats);
             first
         };
-        stats.holes = pixels.par_iter().filter(|a| a.is_empty()).count();
         if !image {
             self.buffers = [pixels, second];
             stats.load_seconds = self.cache.load_seconds - load_before;
             stats.seconds = start.elapsed().as_secs_f64();
             return Ok((None, stats));
         }
-        let mut image = RangeImage::empty(self.frame_meta(camera, t, opts, bases.len()));
+        let spare = self.spare_for(camera);
+        let mut image = blank(spare, self.frame_meta(camera, t, opts, bases.len()));
         write_pixels(self.scene, &poses_t, &pixels, &mut image);
         if opts.time_interp == TimeInterp::Reshade {
             let scene = self.scene;
@@ -572,24 +613,22 @@ impl<'a> Synthesizer<'a> {
         Ok((Some(image), stats))
     }
 
-    /// Gives the holes of `buffers` (frames of `camera`) that are open to
-    /// the sky its radiance ([`fill::sky`]), building the ray engine only
-    /// where a hole needs it; returns how many.
+    /// Gives the holes of `buffer` (a frame of `camera` with `holes` of
+    /// them) that are open to the sky its radiance ([`fill::sky`]),
+    /// building the ray engine only where a hole needs it; returns how many.
     fn open_to_sky(
         &mut self,
         camera: &Camera,
         t: f32,
-        buffers: &mut [&mut Vec<Accum>],
+        buffer: &mut [Accum],
+        holes: usize,
     ) -> Result<usize> {
-        if !buffers.iter().any(|b| b.par_iter().any(Accum::is_empty)) {
+        if holes == 0 {
             return Ok(0);
         }
         let sky = crate::render::sky(self.scene, t);
         let engine = &*self.engine_at(t)?;
-        Ok(buffers
-            .iter_mut()
-            .map(|b| fill::sky(engine, &sky, camera, b))
-            .sum())
+        Ok(fill::sky(engine, &sky, camera, buffer))
     }
 
     /// The scene's ray engine (built on first use) posed at `t`.
@@ -622,16 +661,18 @@ pub const MAX_SUPERSAMPLE: u32 = 4;
 /// pixel part of which shows a light takes the light's surface, so that
 /// tracing lights' rims ([`lights`]) finds it. Returns the frame and its
 /// holes.
+#[allow(clippy::too_many_arguments)]
 fn downsample(
     scene: &Scene,
     poses: &[Affine3A],
+    blank: impl FnOnce(RangeMeta) -> RangeImage,
     (camera, k, meta): (&Camera, u32, &RangeMeta),
     seen: impl Fn(usize) -> bool + Sync,
     radiance: impl Fn(usize) -> Vec3 + Sync,
     object: impl Fn(usize) -> u32 + Sync,
     surface: impl Fn(usize) -> (f32, u32, u32, Vec3) + Sync,
 ) -> (RangeImage, usize) {
-    let mut image = RangeImage::empty(RangeMeta {
+    let mut image = blank(RangeMeta {
         camera: *camera,
         ..meta.clone()
     });
@@ -672,6 +713,10 @@ fn downsample(
                     }
                 }
                 let Some(j) = light.or(shown) else {
+                    // Written, as every pixel: the image may be recycled.
+                    *pixel = Vec3::ZERO;
+                    (*distance, *shown_object, *primitive, *normal) =
+                        (0.0, NO_HIT, NO_HIT, Vec3::ZERO);
                     return 1;
                 };
                 *pixel = sum / n as f32;
@@ -734,7 +779,17 @@ fn blend_linear(a: &Accum, b: &Accum) -> Accum {
     }
 }
 
-/// The frame's pixels from what they gathered.
+/// An image with `meta`, `spare`'s planes where given (stale: the caller
+/// writes every pixel).
+fn blank(spare: Option<RangeImage>, meta: RangeMeta) -> RangeImage {
+    match spare {
+        Some(image) => RangeImage { meta, ..image },
+        None => RangeImage::empty(meta),
+    }
+}
+
+/// The frame's pixels from what they gathered, every one of them written
+/// (an image may come from [`Synthesizer::recycle`]).
 fn write_pixels(scene: &Scene, poses: &[Affine3A], pixels: &[Accum], image: &mut RangeImage) {
     let cam = image.meta.camera.position;
     let row = image.width.max(1) as usize;
@@ -753,6 +808,8 @@ fn write_pixels(scene: &Scene, poses: &[Affine3A], pixels: &[Accum], image: &mut
                 let mut last: Option<((u32, u32), Option<Vec3>)> = None;
                 for (j, a) in a.iter().enumerate() {
                     if a.is_empty() {
+                        radiance[j] = Vec3::ZERO;
+                        (distance[j], object[j], primitive[j], normal[j]) = shown(cam, a, None);
                         continue;
                     }
                     radiance[j] = a.radiance / a.w;
@@ -868,14 +925,15 @@ mod tests {
     use crate::bake::{self, BaseProjection, IndirectSource, Settings, Shard};
     use crate::plan::{Plan, PlannedView};
 
-    /// Skipping the samples of later bases that cannot change a pixel is
-    /// an optimisation only: frames are bit for bit those made without it,
-    /// for both ways of interpolating in time and with subpixels.
-    #[test]
-    fn nearest_first_frames_are_the_same_whether_hidden_samples_are_skipped_or_not() {
+    fn cornell_box() -> Scene {
         let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
             .join("scenes/cornell-box/scene.toml");
-        let scene = Scene::load(&path).unwrap();
+        Scene::load(&path).unwrap()
+    }
+
+    /// A bake of three views along the Cornell box's view space at t = 0
+    /// and 1: 192² sphere bases, one sample a pixel.
+    fn three_view_bake(scene: &Scene) -> tempfile::TempDir {
         let Some(ViewSpace::Segment { a, b }) = scene.view_space else {
             panic!("the Cornell box's view space is a segment");
         };
@@ -903,7 +961,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let mut engine = accel::build(settings.backend, &scene.geometry(), &scene.at(0.0)).unwrap();
         bake::run(
-            &scene,
+            scene,
             dir.path(),
             &settings,
             Shard::ALL,
@@ -911,6 +969,16 @@ mod tests {
             |_| Ok(plan),
         )
         .unwrap();
+        dir
+    }
+
+    /// Skipping the samples of later bases that cannot change a pixel is
+    /// an optimisation only: frames are bit for bit those made without it,
+    /// for both ways of interpolating in time and with subpixels.
+    #[test]
+    fn nearest_first_frames_are_the_same_whether_hidden_samples_are_skipped_or_not() {
+        let scene = cornell_box();
+        let dir = three_view_bake(&scene);
         let baked = Bake::open(dir.path(), &scene).unwrap();
         let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
         // Frames whose pixels are narrower than the bases' and wider,
@@ -955,6 +1023,99 @@ mod tests {
                     .collect()
             };
             assert!(bits(&skipped) == bits(&kept), "{case}: frames differ");
+        }
+    }
+
+    /// The holes a frame reports are counted as projection leaves them and
+    /// as the fills take them, not looked for again: they must be the
+    /// pixels its z-buffer leaves empty, with and without fills, whether
+    /// or not there were holes to fill.
+    #[test]
+    fn holes_reported_are_the_empty_pixels_left() {
+        let scene = cornell_box();
+        let dir = three_view_bake(&scene);
+        let baked = Bake::open(dir.path(), &scene).unwrap();
+        let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
+        let camera = scene
+            .path("walk")
+            .unwrap()
+            .at(0.9)
+            .perspective(96, 80)
+            .unwrap();
+        let (mut some_holes, mut some_filled, mut none) = (false, false, false);
+        for fill in [Fill::None, Fill::Foreground, Fill::Background, Fill::Both] {
+            for time_interp in [TimeInterp::Motion, TimeInterp::Linear] {
+                for (bases, fill_reach) in [(1, 2), (1, Options::default().fill_reach), (3, 2)] {
+                    let opts = Options {
+                        bases,
+                        fill,
+                        fill_reach,
+                        time_interp,
+                        supersample: 1,
+                        ..Options::default()
+                    };
+                    let (_, stats) = synth.frame(&camera, 0.3, &opts).unwrap();
+                    let empty = synth.buffers[0].iter().filter(|a| a.is_empty()).count();
+                    let case =
+                        format!("{fill:?}, {time_interp}, {bases} view(s), reach {fill_reach}");
+                    assert_eq!(stats.holes, empty, "{case}");
+                    some_holes |= stats.holes > 0;
+                    some_filled |= stats.holes > 0 && stats.filled > 0;
+                    none |= stats.holes == 0;
+                }
+            }
+        }
+        assert!(
+            some_holes && some_filled && none,
+            "{some_holes} {some_filled} {none}"
+        );
+    }
+
+    /// A frame written into a recycled one's planes is the frame made
+    /// afresh, wherever the recycled one had pixels and this one holes.
+    #[test]
+    fn recycled_frames_are_those_made_afresh() {
+        let scene = cornell_box();
+        let dir = three_view_bake(&scene);
+        let baked = Bake::open(dir.path(), &scene).unwrap();
+        let walk = scene.path("walk").unwrap();
+        let camera = |at: f32| walk.at(at).perspective(96, 80).unwrap();
+        let bits = |i: &RangeImage| -> Vec<u32> {
+            i.radiance
+                .iter()
+                .chain(&i.normal)
+                .flat_map(|c| c.to_array())
+                .chain(i.distance.iter().copied())
+                .map(f32::to_bits)
+                .chain(i.object_id.iter().copied())
+                .chain(i.primitive_id.iter().copied())
+                .collect()
+        };
+        for supersample in [1, 2] {
+            // Holes where the recycled frame had none (splats, so that
+            // subpixels are made).
+            let (full, holey) = (
+                Options {
+                    supersample,
+                    ..Options::default()
+                },
+                Options {
+                    bases: 1,
+                    fill: Fill::Foreground,
+                    supersample,
+                    ..Options::default()
+                },
+            );
+            let mut fresh = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
+            let (want, stats) = fresh.frame(&camera(0.9), 0.4, &holey).unwrap();
+            assert!(stats.holes > 0, "{supersample}²: no holes");
+            let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
+            let (before, _) = synth.frame(&camera(0.1), 0.0, &full).unwrap();
+            synth.recycle(before);
+            let (got, _) = synth.frame(&camera(0.9), 0.4, &holey).unwrap();
+            assert!(bits(&got) == bits(&want), "{supersample}²: frames differ");
+            assert_eq!(got.meta.scene, want.meta.scene);
+            assert_eq!(got.meta.camera, want.meta.camera);
         }
     }
 }

@@ -158,6 +158,7 @@ pub fn walk(
         ));
         bar.inc(1);
         stats.push(s);
+        synth.recycle(frame);
     }
     bar.finish_and_clear();
     write_apng(

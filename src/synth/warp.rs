@@ -453,12 +453,30 @@ impl Projected {
 /// whatever it held before. Returns how many base pixels nearest-first
 /// blending left out of a band because they could not change it (a pixel
 /// of a tile counts once for each band it was left out of).
+/// What [`warp`] counted: base pixels nearest-first blending left out
+/// (once for every band they were left out of), and frame pixels no sample
+/// reached, so that the fills need not look for holes where none are.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Warped {
+    pub hidden: usize,
+    pub holes: usize,
+}
+
+impl std::iter::Sum for Warped {
+    fn sum<I: Iterator<Item = Warped>>(iter: I) -> Warped {
+        iter.fold(Warped::default(), |a, b| Warped {
+            hidden: a.hidden + b.hidden,
+            holes: a.holes + b.holes,
+        })
+    }
+}
+
 pub fn warp(
     target: &Target,
     passes: &[Pass],
     settings: &WarpSettings,
     buffer: &mut [Accum],
-) -> usize {
+) -> Warped {
     let (w, h) = (target.camera.width, target.camera.height);
     debug_assert_eq!(buffer.len(), (w * h) as usize);
     let band = (h / 8).max(16);
@@ -588,8 +606,10 @@ pub fn warp(
                     };
                     deposit_splats(target, (i, pass), tile_splats, settings, &mut band);
                 }
-                resolve(passes, band.hot, band.alpha, rows);
-                band.hidden
+                Warped {
+                    hidden: band.hidden,
+                    holes: resolve(passes, band.hot, band.alpha, rows),
+                }
             })
         })
         .sum()
@@ -731,10 +751,13 @@ fn hidden(
 /// and ids looked up in its pass. Overlap alone does not make a pixel
 /// seen: where no footprint covers its centre (a disocclusion's edge), it
 /// stays a hole for the fills rather than taking the foreground's edge.
-fn resolve(passes: &[Pass], hot: &[Hot], alpha: &[f32], rows: &mut [Accum]) {
+/// Returns the number of holes.
+fn resolve(passes: &[Pass], hot: &[Hot], alpha: &[f32], rows: &mut [Accum]) -> usize {
+    let mut holes = 0;
     for (j, (a, h)) in rows.iter_mut().zip(hot).enumerate() {
         if h.z == 0.0 || !h.covered() {
             *a = Accum::default();
+            holes += 1;
             continue;
         }
         let pass = &passes[(h.tag >> 1) as usize];
@@ -756,6 +779,7 @@ fn resolve(passes: &[Pass], hot: &[Hot], alpha: &[f32], rows: &mut [Accum]) {
             reach: 0,
         };
     }
+    holes
 }
 
 /// A base pixel projected into the frame, with everything its deposits

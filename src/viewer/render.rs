@@ -63,8 +63,10 @@ impl Renderer {
                                 .collect();
                             views.sort_unstable();
                             views.dedup();
+                            let rgb = image::tonemap_srgb8(&frame.radiance, exposure);
+                            synth.recycle(frame);
                             Rendered {
-                                rgb: image::tonemap_srgb8(&frame.radiance, exposure),
+                                rgb,
                                 request,
                                 stats,
                                 views,

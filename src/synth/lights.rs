@@ -52,35 +52,52 @@ pub fn trace(
     let radiance = &image.radiance;
     let emissive = emissive(scene);
     let emits = |id: u32| emissive.get(id as usize).copied().unwrap_or(false);
-    let on_light = light_pixels(&emissive, ids);
-    let (lit, interior, window) = near_lights(&on_light, ids, w, h);
-    let traced: Vec<usize> = window.into_par_iter().filter(|&k| lit[k]).collect();
+    let Some(near) = near_lights(&emissive, ids, w, h) else {
+        return 0;
+    };
     let shading = SurfaceShading::new(scene, engine, t);
     let camera = image.meta.camera;
     let around = Around {
         ids,
-        interior: &interior,
-        lit: &lit,
+        near: &near,
         normal: &image.normal,
         radiance,
         w: w as i64,
         h: h as i64,
     };
-    let corners = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)];
-    let full = hammersley(side * side);
-    // Rays through pixel `k` at `offsets` and what they hit; `None` where
-    // part of the pixel lies outside a fisheye's circle.
-    let rays_through = |k: usize, offsets: &[(f32, f32)]| -> Option<(Vec<Ray>, Vec<Option<Hit>>)> {
-        let (x, y) = ((k % w) as f32, (k / w) as f32);
-        let rays: Vec<Ray> = offsets
-            .iter()
-            .map(|&(dx, dy)| camera.ray(x + dx, y + dy))
-            .collect::<Option<_>>()?;
-        let mut hits = vec![None; rays.len()];
-        engine.intersect_batch(&rays, &mut hits);
-        Some((rays, hits))
+    // Rows of the pixels to trace (those at or beside a light), and the
+    // columns in each.
+    let first_row = near.window.start / w;
+    let rows: Vec<Vec<usize>> = near
+        .lit
+        .par_chunks(w)
+        .map(|row| (0..w).filter(|&x| row[x]).collect())
+        .collect();
+    // What the ray through each pixel corner they need meets (`None`
+    // outside a fisheye's circle), traced once for the pixels sharing it,
+    // a row of corners at a time.
+    let corner_rows: Vec<Vec<(usize, Option<u32>)>> = (0..=rows.len())
+        .into_par_iter()
+        .map(|r: usize| {
+            let mut xs: Vec<usize> = [r.checked_sub(1), (r < rows.len()).then_some(r)]
+                .into_iter()
+                .flatten()
+                .flat_map(|r| rows[r].iter().flat_map(|&x| [x, x + 1]))
+                .collect();
+            xs.sort_unstable();
+            xs.dedup();
+            let y = (first_row + r) as f32;
+            let rays: Vec<Option<Ray>> = xs.iter().map(|&x| camera.ray(x as f32, y)).collect();
+            let objects = meet(engine, &rays, |hit| hit.map_or(NO_HIT, |h| h.object));
+            xs.into_iter().zip(objects).collect()
+        })
+        .collect();
+    let corner = |x: usize, r: usize| -> Option<u32> {
+        let row = &corner_rows[r];
+        row[row.binary_search_by_key(&x, |c| c.0).ok()?].1
     };
-    // Mean radiance of those rays.
+    let full = hammersley(side * side);
+    // Mean radiance of the rays through pixel `k` at `offsets`.
     let shade = |k: usize, offsets: &[(f32, f32)], rays: &[Ray], hits: &[Option<Hit>]| -> Vec3 {
         let (x, y) = ((k % w) as f32, (k / w) as f32);
         let mut sum = Vec3::ZERO;
@@ -112,16 +129,54 @@ pub fn trace(
         }
         sum / rays.len() as f32
     };
-    let values: Vec<(usize, Vec3)> = traced
-        .par_iter()
-        .filter_map(|&k| {
-            // The corners only tell whether the pixel shows one surface.
-            let (_, hits) = rays_through(k, &corners)?;
-            let object = |hit: &Option<Hit>| hit.map_or(NO_HIT, |h| h.object);
-            let one = hits.iter().all(|hit| object(hit) == object(&hits[0]));
-            let offsets: &[(f32, f32)] = if one { &[(0.5, 0.5)] } else { &full };
-            let (rays, hits) = rays_through(k, offsets)?;
-            Some((k, shade(k, offsets, &rays, &hits)))
+    let centre = [(0.5, 0.5)];
+    // Pixels (column, row of the window) in runs of a row, their rays
+    // traced together: a rim's pixels crowd into few rows.
+    let pixels: Vec<(usize, usize)> = rows
+        .iter()
+        .enumerate()
+        .flat_map(|(r, xs)| xs.iter().map(move |&x| (x, r)))
+        .collect();
+    let values: Vec<(usize, Vec3)> = pixels
+        .par_chunks(RUN)
+        .flat_map_iter(|run| {
+            // The corners only tell whether a pixel shows one surface: one
+            // ray through its centre then, the full set on a rim. A pixel
+            // partly outside a fisheye's circle is left as it is.
+            let mut sets: [(Vec<usize>, Vec<Ray>); 2] = Default::default();
+            for &(x, r) in run {
+                let Some(c) = [(x, r), (x + 1, r), (x, r + 1), (x + 1, r + 1)]
+                    .map(|(x, r)| corner(x, r))
+                    .into_iter()
+                    .collect::<Option<Vec<u32>>>()
+                else {
+                    continue;
+                };
+                let one = c.iter().all(|&o| o == c[0]);
+                let offsets: &[(f32, f32)] = if one { &centre } else { &full };
+                let y = first_row + r;
+                let Some(rays) = offsets
+                    .iter()
+                    .map(|&(dx, dy)| camera.ray(x as f32 + dx, y as f32 + dy))
+                    .collect::<Option<Vec<Ray>>>()
+                else {
+                    continue;
+                };
+                let set = &mut sets[!one as usize];
+                set.0.push(y * w + x);
+                set.1.extend(rays);
+            }
+            let mut out = Vec::new();
+            for ((pixels, rays), offsets) in sets.into_iter().zip([&centre[..], &full[..]]) {
+                let mut hits = vec![None; rays.len()];
+                engine.intersect_batch(&rays, &mut hits);
+                let n = offsets.len();
+                for (i, &k) in pixels.iter().enumerate() {
+                    let span = i * n..(i + 1) * n;
+                    out.push((k, shade(k, offsets, &rays[span.clone()], &hits[span])));
+                }
+            }
+            out
         })
         .collect();
     let count = values.len();
@@ -129,6 +184,25 @@ pub fn trace(
         image.radiance[k] = c;
     }
     count
+}
+
+/// Pixels whose rays [`trace`] traces together.
+const RUN: usize = 16;
+
+/// `what` of each ray's first hit, the rays that exist traced together
+/// (`None` for those that do not).
+fn meet<T>(
+    engine: &dyn RayEngine,
+    rays: &[Option<Ray>],
+    what: impl Fn(Option<&Hit>) -> T,
+) -> Vec<Option<T>> {
+    let some: Vec<Ray> = rays.iter().flatten().copied().collect();
+    let mut hits = vec![None; some.len()];
+    engine.intersect_batch(&some, &mut hits);
+    let mut hits = hits.iter();
+    rays.iter()
+        .map(|r| r.map(|_| what(hits.next().expect("a hit a ray").as_ref())))
+        .collect()
 }
 
 /// Gives base pixels beside a light the radiance of their own surface
@@ -146,28 +220,27 @@ pub fn unmix_beside_lights(scene: &Scene, image: &mut RangeImage) -> usize {
     let (w, h) = (image.width as usize, image.height as usize);
     let emissive = emissive(scene);
     let ids = &image.object_id;
-    let on_light = light_pixels(&emissive, ids);
-    if !on_light.contains(&true) {
+    let Some(near) = near_lights(&emissive, ids, w, h) else {
         return 0;
-    }
-    let (lit, interior, _) = near_lights(&on_light, ids, w, h);
+    };
     let around = Around {
         ids,
-        interior: &interior,
-        lit: &lit,
+        near: &near,
         normal: &image.normal,
         radiance: &image.radiance,
         w: w as i64,
         h: h as i64,
     };
-    let values: Vec<(usize, Vec3)> = (0..ids.len())
+    let values: Vec<(usize, Vec3)> = near
+        .window
+        .clone()
         .into_par_iter()
-        .filter(|&k| lit[k] && !on_light[k] && ids[k] != NO_HIT)
+        .filter(|&k| near.lit(k) && !near.on_light(k) && ids[k] != NO_HIT)
         .filter_map(|k| {
             let (sx, sy) = ((k % w) as f32 + 0.5, (k / w) as f32 + 0.5);
             let normal = image.normal[k];
             let j = around.best(ids[k], normal, sx, sy, |j| {
-                !lit[j] && image.normal[j].dot(normal).abs() >= FACE_COS
+                !near.lit(j) && image.normal[j].dot(normal).abs() >= FACE_COS
             })?;
             Some((k, image.radiance[j]))
         })
@@ -187,36 +260,57 @@ pub fn unmix_beside_lights(scene: &Scene, image: &mut RangeImage) -> usize {
 /// two more are kept.
 const WINDOW: usize = REACH as usize + 6;
 
-/// Per pixel: whether it is at or beside a light (`on_light` grown by a
-/// pixel), and whether its 3 × 3 neighbourhood is free of changes of
-/// surface ([`interior`]). Both are worked out only in the rows within
-/// [`WINDOW`] of a light (the pixels returned last), the only ones
-/// [`Around`] reads: the whole frame took about as long as tracing the
+/// Per pixel of the rows within [`WINDOW`] of the frame's lights (its
+/// `window`), whether it shows a light, whether it is at or beside one
+/// (grown by a pixel), and whether its 3 × 3 neighbourhood is free of
+/// changes of surface ([`interior`]): [`Around`] reads no other rows, and
+/// working them out for the whole frame took about as long as tracing the
 /// lights' rims.
-fn near_lights(
-    on_light: &[bool],
-    ids: &[u32],
-    w: usize,
-    h: usize,
-) -> (Vec<bool>, Vec<bool>, Range<usize>) {
-    let (mut lit, mut interior) = (vec![false; ids.len()], vec![false; ids.len()]);
-    let rows = || on_light.par_chunks(w.max(1)).map(|r| r.contains(&true));
-    let (Some(first), Some(last)) = (rows().position_first(|l| l), rows().position_last(|l| l))
-    else {
-        return (lit, interior, 0..0);
-    };
-    let (a, b) = (first.saturating_sub(WINDOW), (last + 1 + WINDOW).min(h));
-    let window = a * w..b * w;
-    lit[window.clone()].copy_from_slice(&dilate(&on_light[window.clone()], w, b - a));
-    interior[window.clone()].copy_from_slice(&self::interior(&ids[window.clone()], w, b - a));
-    (lit, interior, window)
+struct Near {
+    window: Range<usize>,
+    on_light: Vec<bool>,
+    lit: Vec<bool>,
+    interior: Vec<bool>,
 }
 
-/// Per pixel: whether it shows an object that `emissive` marks.
-fn light_pixels(emissive: &[bool], ids: &[u32]) -> Vec<bool> {
-    ids.par_iter()
-        .map(|&id| emissive.get(id as usize).copied().unwrap_or(false))
-        .collect()
+impl Near {
+    /// Pixel `j`'s entry of `mask`; false outside the window.
+    fn at(&self, mask: &[bool], j: usize) -> bool {
+        j.checked_sub(self.window.start)
+            .and_then(|i| mask.get(i))
+            .copied()
+            .unwrap_or(false)
+    }
+
+    fn on_light(&self, j: usize) -> bool {
+        self.at(&self.on_light, j)
+    }
+
+    fn lit(&self, j: usize) -> bool {
+        self.at(&self.lit, j)
+    }
+
+    fn interior(&self, j: usize) -> bool {
+        self.at(&self.interior, j)
+    }
+}
+
+/// The masks of the frame's pixels (`ids`, `w` × `h`) near the lights
+/// that `emissive` marks; `None` where no pixel shows one.
+fn near_lights(emissive: &[bool], ids: &[u32], w: usize, h: usize) -> Option<Near> {
+    let emits = |id: &u32| emissive.get(*id as usize).copied().unwrap_or(false);
+    let rows = || ids.par_chunks(w.max(1)).map(|r| r.iter().any(emits));
+    let first = rows().position_first(|l| l)?;
+    let last = rows().position_last(|l| l)?;
+    let (a, b) = (first.saturating_sub(WINDOW), (last + 1 + WINDOW).min(h));
+    let window = a * w..b * w;
+    let on_light: Vec<bool> = ids[window.clone()].par_iter().map(emits).collect();
+    Some(Near {
+        lit: dilate(&on_light, w, b - a),
+        interior: interior(&ids[window.clone()], w, b - a),
+        on_light,
+        window,
+    })
 }
 
 /// Per pixel: whether its 3×3 neighbourhood is free of changes of
@@ -279,11 +373,9 @@ fn dilate(mask: &[bool], w: usize, h: usize) -> Vec<bool> {
 /// The frame's pixels, for looking up what a traced ray saw.
 struct Around<'a> {
     ids: &'a [u32],
-    /// Whether a pixel's neighbours all show its surface.
-    interior: &'a [bool],
-    /// Whether a pixel is at or beside a light: its value may hold part
-    /// of it.
-    lit: &'a [bool],
+    /// Whether a pixel is at or beside a light (its value may hold part
+    /// of it), and whether its neighbours all show its surface.
+    near: &'a Near,
     normal: &'a [Vec3],
     radiance: &'a [Vec3],
     w: i64,
@@ -305,8 +397,10 @@ impl Around<'_> {
         sy: f32,
         inside_only: bool,
     ) -> Option<Vec3> {
-        self.best(object, normal, sx, sy, |j| !inside_only || self.interior[j])
-            .map(|j| self.radiance[j])
+        self.best(object, normal, sx, sy, |j| {
+            !inside_only || self.near.interior(j)
+        })
+        .map(|j| self.radiance[j])
     }
 
     /// The pixel [`Around::nearest`] prefers among those `accept` allows.
@@ -328,7 +422,7 @@ impl Around<'_> {
                 }
                 let d = (u as f32 + 0.5 - sx).powi(2) + (v as f32 + 0.5 - sy).powi(2);
                 let other_face = self.normal[j].dot(normal).abs() < FACE_COS;
-                let key = (other_face, self.lit[j], !self.interior[j], d);
+                let key = (other_face, self.near.lit(j), !self.near.interior(j), d);
                 if best.is_none_or(|(b, _)| key < b) {
                     best = Some((key, j));
                 }
@@ -364,6 +458,7 @@ mod tests {
     #[test]
     fn masks_near_lights_are_those_of_the_whole_frame_where_they_are_read() {
         let (w, h) = (37, 41);
+        let emissive: Vec<bool> = (0..10).map(|id| id == 9).collect();
         // Rows a ray through a pixel beside the light (rows 17..=20) looks
         // up.
         let read = (17 - 1 - REACH as usize) * w..(20 + 2 + REACH as usize + 1) * w;
@@ -381,20 +476,21 @@ mod tests {
                 })
                 .collect();
             let on_light: Vec<bool> = ids.iter().map(|&i| i == 9).collect();
-            let (lit, interior, window) = near_lights(&on_light, &ids, w, h);
+            let near = near_lights(&emissive, &ids, w, h).expect("a light in view");
+            let window = &near.window;
             assert!(window.start <= read.start && window.end >= read.end);
-            assert_eq!(lit, dilate(&on_light, w, h), "edge after row {edge}");
-            let whole = self::interior(&ids, w, h);
-            assert_eq!(
-                interior[read.clone()],
-                whole[read.clone()],
-                "edge after row {edge}"
-            );
+            let whole = (dilate(&on_light, w, h), self::interior(&ids, w, h));
+            for (k, &on) in on_light.iter().enumerate() {
+                let case = format!("edge after row {edge}, pixel {k}");
+                assert_eq!(near.on_light(k), on, "{case}");
+                assert_eq!(near.lit(k), whole.0[k], "{case}");
+                if read.contains(&k) {
+                    assert_eq!(near.interior(k), whole.1[k], "{case}");
+                }
+            }
         }
         // Without a light nothing is worked out.
-        let ids = vec![0; w * h];
-        let none = vec![false; w * h];
-        assert_eq!(near_lights(&none, &ids, w, h), (none.clone(), none, 0..0));
+        assert!(near_lights(&emissive, &vec![0; w * h], w, h).is_none());
     }
 
     /// An 8×8 view of the Cornell box's ceiling (radiance 1) with the light

@@ -29,26 +29,72 @@ pub fn srgb_decode(x: f32) -> f32 {
 /// keeps previews of different frames directly comparable; NaN shows black.
 ///
 /// Each value's byte is found among the 255 values where the encoding's
-/// rounding steps up ([`steps`]): the same byte as encoding it, without a
-/// power per channel, which made this take about as long as a frame's
-/// synthesis in the viewer.
+/// rounding steps up ([`steps`]), those of its bucket ([`Buckets`]): the
+/// same byte as encoding it, without a power per channel, which made this
+/// take about as long as a frame's synthesis in the viewer.
 pub fn tonemap_srgb8(radiance: &[Vec3], exposure: f32) -> Vec<u8> {
     const CHUNK: usize = 4096;
     let scale = exposure.exp2();
-    let steps = steps();
+    let table = Buckets::get();
     let mut out = vec![0; 3 * radiance.len()];
     out.par_chunks_mut(3 * CHUNK)
         .zip(radiance.par_chunks(CHUNK))
         .for_each(|(bytes, pixels)| {
-            for (b, c) in bytes
-                .iter_mut()
-                .zip(pixels.iter().flat_map(|c| (*c * scale).to_array()))
-            {
-                // NaN is below no step.
-                *b = steps.partition_point(|&s| s <= c) as u8;
+            for (b, c) in bytes.chunks_exact_mut(3).zip(pixels) {
+                let c = *c * scale;
+                b.copy_from_slice(&[table.byte(c.x), table.byte(c.y), table.byte(c.z)]);
             }
         });
     out
+}
+
+/// The bytes of the values that share their sign, exponent and top seven
+/// bits of mantissa (a bucket of at most 0.8% of its values' size), below
+/// 1: the least and the greatest. Between them the value's byte is found
+/// among those few [`steps`] (a rounding step of the encoding is at least
+/// 0.9% of the value it lies at, so at most one): the same byte as
+/// encoding the value, at a table lookup and a comparison. A search of all
+/// 255 steps took 1.8 ms of every 512² frame in the viewer.
+struct Buckets {
+    steps: &'static [f32; 255],
+    bytes: Vec<(u8, u8)>,
+}
+
+/// Bits of a value below its bucket's.
+const BUCKET_SHIFT: u32 = 16;
+
+impl Buckets {
+    fn get() -> &'static Buckets {
+        static BUCKETS: OnceLock<Buckets> = OnceLock::new();
+        BUCKETS.get_or_init(|| {
+            let steps = steps();
+            let byte = |c: f32| steps.partition_point(|&s| s <= c) as u8;
+            let bytes = (0..=1.0f32.to_bits() >> BUCKET_SHIFT)
+                .map(|k| {
+                    let lo = f32::from_bits(k << BUCKET_SHIFT);
+                    let hi = f32::from_bits(((k + 1) << BUCKET_SHIFT) - 1);
+                    (byte(lo), byte(hi))
+                })
+                .collect();
+            Buckets { steps, bytes }
+        })
+    }
+
+    /// The byte of value `c` (NaN black).
+    #[inline]
+    fn byte(&self, c: f32) -> u8 {
+        // Also NaN and −0.
+        if !(c > 0.0) {
+            return 0;
+        }
+        let Some(&(lo, hi)) = self.bytes.get((c.to_bits() >> BUCKET_SHIFT) as usize) else {
+            return 255;
+        };
+        if lo == hi {
+            return lo;
+        }
+        lo + self.steps[lo as usize..hi as usize].partition_point(|&s| s <= c) as u8
+    }
 }
 
 /// A value's byte as the preview rounds its encoding (NaN black).

@@ -84,7 +84,7 @@ impl Buckets {
     #[inline]
     fn byte(&self, c: f32) -> u8 {
         // Also NaN and −0.
-        if !(c > 0.0) {
+        if c.is_nan() || c <= 0.0 {
             return 0;
         }
         let Some(&(lo, hi)) = self.bytes.get((c.to_bits() >> BUCKET_SHIFT) as usize) else {

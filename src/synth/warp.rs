@@ -479,7 +479,9 @@ pub fn warp(
 ) -> Warped {
     let (w, h) = (target.camera.width, target.camera.height);
     debug_assert_eq!(buffer.len(), (w * h) as usize);
-    let band = (h / 8).max(16);
+    // Sixteen bands: with eight, one core waited on the other for a tenth
+    // of the frame (a band is a unit of work, and they differ in cost).
+    let band = (h / 16).max(16);
     let bands = h.div_ceil(band) as usize;
     // Every (pass, tile) that may reach the frame, in pass order.
     let lists: Vec<Vec<(u32, u32, Reach)>> = passes

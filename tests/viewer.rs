@@ -141,58 +141,83 @@ fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
 const W: u32 = 160;
 const H: u32 = 128;
 
+/// Synth's options that make the viewer's drafts.
+const DRAFT: [&str; 6] = [
+    "--supersample",
+    "1",
+    "--filter",
+    "cover",
+    "--blend",
+    "nearest",
+];
+
 #[test]
 fn a_played_path_shows_what_synth_makes() {
     let x = Xvfb::start();
     let bake = bake().to_str().unwrap();
-    let out = tempfile::tempdir().unwrap();
-    let shot = out.path().join("shot.png");
+    // While the view moves the viewer shows drafts (by default), or the
+    // frames of the options given.
+    for (moving, synth_options) in [("draft", &DRAFT[..]), ("full", &[])] {
+        let out = tempfile::tempdir().unwrap();
+        let shot = out.path().join("shot.png");
+        let size = format!("{W}x{H}");
+        let start = Instant::now();
+        let o = rangewalk(
+            &[
+                "view",
+                bake,
+                "--path",
+                "walk",
+                "--frames",
+                "60",
+                "--size",
+                &size,
+                "--moving",
+                moving,
+                "--screenshot",
+                shot.to_str().unwrap(),
+            ],
+            Some(&x.display),
+        );
+        let text = ok(&o, &format!("rangewalk view --path walk --moving {moving}"));
+        let drafts = if moving == "draft" { 60 } else { 0 };
+        assert!(
+            text.contains(&format!("60 frame(s) ({drafts} draft(s))")),
+            "{text}"
+        );
+        eprintln!("{text}(in {:.1} s)", start.elapsed().as_secs_f64());
+
+        // The path loops: frame 59 is its frame 59 mod 31 at 30 frames/s.
+        let times = frame_times((0.0, 1.0), 30.0);
+        let t = times[59 % times.len()];
+        assert!(text.contains(&format!("t = {t} s")), "{text}");
+        let t = t.to_string();
+        let mut synth = vec!["--path", "walk", "--time", &t];
+        synth.extend(synth_options);
+        shows_what_synth_makes(&shot, &synth, out.path());
+    }
+}
+
+/// Whether the screenshot `shot` shows, above its status lines, the frame
+/// `rangewalk synth` makes with `synth_args` (its camera, time and
+/// options) at the test's size; `out` for synth's files.
+fn shows_what_synth_makes(shot: &Path, synth_args: &[&str], out: &Path) {
     let size = format!("{W}x{H}");
-    let start = Instant::now();
-    let o = rangewalk(
-        &[
-            "view",
-            bake,
-            "--path",
-            "walk",
-            "--frames",
-            "60",
-            "--size",
-            &size,
-            "--screenshot",
-            shot.to_str().unwrap(),
-        ],
-        Some(&x.display),
-    );
-    let text = ok(&o, "rangewalk view --path walk");
-    assert!(text.contains("60 frame(s)"), "{text}");
-    eprintln!("{text}(in {:.1} s)", start.elapsed().as_secs_f64());
+    let reference = out.join("synth.png");
+    let exr = out.join("synth.exr");
+    let mut args = vec!["synth", bake().to_str().unwrap()];
+    args.extend(synth_args);
+    args.extend([
+        "--size",
+        &size,
+        "--out",
+        exr.to_str().unwrap(),
+        "--preview",
+        reference.to_str().unwrap(),
+    ]);
+    ok(&rangewalk(&args, None), &format!("rangewalk {args:?}"));
 
-    // The path loops: frame 59 is its frame 59 mod 31 at 30 frames/s.
-    let times = frame_times((0.0, 1.0), 30.0);
-    let t = times[59 % times.len()];
-    assert!(text.contains(&format!("t = {t} s")), "{text}");
-    let reference = out.path().join("synth.png");
-    let o = rangewalk(
-        &[
-            "synth",
-            bake,
-            "--path",
-            "walk",
-            "--time",
-            &t.to_string(),
-            "--size",
-            &size,
-            "--out",
-            out.path().join("synth.exr").to_str().unwrap(),
-            "--preview",
-            reference.to_str().unwrap(),
-        ],
-        None,
-    );
-    ok(&o, "rangewalk synth --path walk");
-
-    let (w, h, seen) = read_png(&shot);
+    let (w, h, seen) = read_png(shot);
     let (rw, rh, made) = read_png(&reference);
     assert_eq!((w, h), (W, H), "the screenshot's size");
     assert_eq!((rw, rh), (W, H));
@@ -204,7 +229,7 @@ fn a_played_path_shows_what_synth_makes() {
         .count();
     assert_eq!(
         differing, 0,
-        "{differing} bytes above the status lines differ from rangewalk synth's frame"
+        "{differing} bytes above the status lines differ from rangewalk {args:?}"
     );
     assert!(
         made[..above].iter().any(|&v| v > 32),
@@ -217,24 +242,24 @@ fn a_played_path_shows_what_synth_makes() {
     );
 }
 
-/// Runs an input script; the last frame's position, direction and whether
-/// it was stopped at the edge.
-fn scripted(x: &Xvfb, script: &str) -> (Vec3, Vec3, bool) {
+/// Runs an input script (and `more` arguments); the last frame's position,
+/// direction and whether it was stopped at the edge, and what the run
+/// printed.
+fn scripted_with(x: &Xvfb, script: &str, more: &[&str]) -> (Vec3, Vec3, bool, String) {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("input.txt");
     std::fs::write(&file, script).unwrap();
     let size = format!("{W}x{H}");
-    let o = rangewalk(
-        &[
-            "view",
-            bake().to_str().unwrap(),
-            "--input",
-            file.to_str().unwrap(),
-            "--size",
-            &size,
-        ],
-        Some(&x.display),
-    );
+    let mut args = vec![
+        "view",
+        bake().to_str().unwrap(),
+        "--input",
+        file.to_str().unwrap(),
+        "--size",
+        &size,
+    ];
+    args.extend(more);
+    let o = rangewalk(&args, Some(&x.display));
     let text = ok(&o, &format!("rangewalk view --input `{script}`"));
     let line = text
         .lines()
@@ -255,7 +280,37 @@ fn scripted(x: &Xvfb, script: &str) -> (Vec3, Vec3, bool) {
         position,
         direction,
         line.contains("stopped at the view space's edge"),
+        text,
     )
+}
+
+fn scripted(x: &Xvfb, script: &str) -> (Vec3, Vec3, bool) {
+    let (p, d, edge, _) = scripted_with(x, script, &[]);
+    (p, d, edge)
+}
+
+#[test]
+fn a_still_view_is_made_again_in_full() {
+    let x = Xvfb::start();
+    let out = tempfile::tempdir().unwrap();
+    let shot = out.path().join("shot.png");
+    // The first frame (nothing before it) is a draft; Space pauses time
+    // before it, and the three frames after it show the same view at the
+    // same time: in full.
+    let (p, d, _, text) = scripted_with(
+        &x,
+        "1 space\n3\n",
+        &["--screenshot", shot.to_str().unwrap()],
+    );
+    assert!(text.contains("4 frame(s) (1 draft(s))"), "{text}");
+    assert!((p - Vec3::new(278.0, 273.0, -800.0)).length() < 1e-3, "{p}");
+    assert!((d - Vec3::Z).length() < 1e-5, "{d}");
+    let t = text
+        .split("t = ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .unwrap_or_else(|| panic!("no time in\n{text}"));
+    shows_what_synth_makes(&shot, &["--camera", "main", "--time", t], out.path());
 }
 
 #[test]

@@ -4,8 +4,9 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use rangewalk::image;
-use rangewalk::viewer::command::{self, ViewSettings};
+use rangewalk::viewer::command::{self, Moving, ViewSettings};
 
+use super::choice;
 use super::synth::SynthOptions;
 
 /// `rangewalk view`.
@@ -47,6 +48,9 @@ pub struct ViewArgs {
     /// Scene frames per second of a scripted run [default: the scene's].
     #[arg(long)]
     pub fps: Option<f32>,
+    /// How frames are made while the view or the time changes.
+    #[arg(long, value_parser = choice::<Moving>(), default_value_t = Moving::default())]
+    pub moving: Moving,
     #[command(flatten)]
     pub synth: SynthOptions,
 }
@@ -67,6 +71,7 @@ impl ViewArgs {
             speed: self.speed,
             fps: self.fps,
             options: self.synth.options()?,
+            moving: self.moving,
             base_memory_bytes: self.synth.base_memory << 20,
             exposure: self.synth.exposure,
         })
@@ -77,8 +82,9 @@ pub fn view(args: &ViewArgs) -> Result<()> {
     let s = command::run(&args.settings()?)?;
     let last = s.last.as_ref();
     println!(
-        "{} frame(s) at {}: {:.1} frames/s synthesis, {:.1} frames/s shown, {:.3} s reading bases{}",
+        "{} frame(s) ({} draft(s)) at {}: {:.1} frames/s synthesis, {:.1} frames/s shown, {:.3} s reading bases{}",
         s.frames,
+        s.drafts,
         last.map_or("no size".into(), |r| format!(
             "{}x{} from {} base image(s) of view(s) {}",
             r.request.camera.width,

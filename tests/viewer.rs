@@ -142,13 +142,15 @@ const W: u32 = 160;
 const H: u32 = 128;
 
 /// Synth's options that make the viewer's drafts.
-const DRAFT: [&str; 6] = [
+const DRAFT: [&str; 8] = [
     "--supersample",
     "1",
     "--filter",
     "cover",
     "--blend",
     "nearest",
+    "--light-rays",
+    "4",
 ];
 
 #[test]

@@ -38,9 +38,10 @@ use crate::synth::{Blend, Filter, Options};
 #[strum(serialize_all = "lowercase")]
 pub enum Moving {
     /// Drafts while moving: no subpixels, only the pixels a sample covers,
-    /// the nearest base's sample first (synth's `--supersample 1 --filter
-    /// cover --blend nearest`), about three times as fast; a view that
-    /// stays still is made again with the options given.
+    /// the nearest base's sample first, at most 4 × 4 rays a pixel of a
+    /// light's rim (synth's `--supersample 1 --filter cover --blend nearest
+    /// --light-rays 4`), about three times as fast; a view that stays
+    /// still is made again with the options given.
     #[default]
     Draft,
     /// Every frame with the options given.
@@ -56,6 +57,7 @@ impl Moving {
                 supersample: 1,
                 filter: Filter::Cover,
                 blend: Blend::Nearest,
+                light_rays: given.light_rays.min(4),
                 ..given
             },
             _ => given,

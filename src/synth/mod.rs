@@ -932,8 +932,9 @@ mod tests {
     }
 
     /// A bake of three views along the Cornell box's view space at t = 0
-    /// and 1: 192² sphere bases, one sample a pixel.
-    fn three_view_bake(scene: &Scene) -> tempfile::TempDir {
+    /// and 1 (192² sphere bases, one sample a pixel), opened, in the
+    /// folder returned with it.
+    fn three_view_bake(scene: &Scene) -> (tempfile::TempDir, Bake) {
         let Some(ViewSpace::Segment { a, b }) = scene.view_space else {
             panic!("the Cornell box's view space is a segment");
         };
@@ -969,7 +970,8 @@ mod tests {
             |_| Ok(plan),
         )
         .unwrap();
-        dir
+        let baked = Bake::open(dir.path(), scene).unwrap();
+        (dir, baked)
     }
 
     /// Skipping the samples of later bases that cannot change a pixel is
@@ -978,8 +980,7 @@ mod tests {
     #[test]
     fn nearest_first_frames_are_the_same_whether_hidden_samples_are_skipped_or_not() {
         let scene = cornell_box();
-        let dir = three_view_bake(&scene);
-        let baked = Bake::open(dir.path(), &scene).unwrap();
+        let (_dir, baked) = three_view_bake(&scene);
         let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
         // Frames whose pixels are narrower than the bases' and wider,
         // from points along the walk.
@@ -1033,8 +1034,7 @@ mod tests {
     #[test]
     fn holes_reported_are_the_empty_pixels_left() {
         let scene = cornell_box();
-        let dir = three_view_bake(&scene);
-        let baked = Bake::open(dir.path(), &scene).unwrap();
+        let (_dir, baked) = three_view_bake(&scene);
         let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
         let camera = scene
             .path("walk")
@@ -1076,8 +1076,7 @@ mod tests {
     #[test]
     fn recycled_frames_are_those_made_afresh() {
         let scene = cornell_box();
-        let dir = three_view_bake(&scene);
-        let baked = Bake::open(dir.path(), &scene).unwrap();
+        let (_dir, baked) = three_view_bake(&scene);
         let walk = scene.path("walk").unwrap();
         let camera = |at: f32| walk.at(at).perspective(96, 80).unwrap();
         let bits = |i: &RangeImage| -> Vec<u32> {

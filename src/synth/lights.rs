@@ -88,7 +88,7 @@ pub fn trace(
             xs.dedup();
             let y = (first_row + r) as f32;
             let rays: Vec<Option<Ray>> = xs.iter().map(|&x| camera.ray(x as f32, y)).collect();
-            let objects = meet(engine, &rays, |hit| hit.map_or(NO_HIT, |h| h.object));
+            let objects = objects_met(engine, &rays);
             xs.into_iter().zip(objects).collect()
         })
         .collect();
@@ -189,19 +189,21 @@ pub fn trace(
 /// Pixels whose rays [`trace`] traces together.
 const RUN: usize = 16;
 
-/// `what` of each ray's first hit, the rays that exist traced together
-/// (`None` for those that do not).
-fn meet<T>(
-    engine: &dyn RayEngine,
-    rays: &[Option<Ray>],
-    what: impl Fn(Option<&Hit>) -> T,
-) -> Vec<Option<T>> {
+/// The object each ray meets first (`NO_HIT` for none), the rays that
+/// exist traced together; `None` for those that do not.
+fn objects_met(engine: &dyn RayEngine, rays: &[Option<Ray>]) -> Vec<Option<u32>> {
     let some: Vec<Ray> = rays.iter().flatten().copied().collect();
     let mut hits = vec![None; some.len()];
     engine.intersect_batch(&some, &mut hits);
     let mut hits = hits.iter();
     rays.iter()
-        .map(|r| r.map(|_| what(hits.next().expect("a hit a ray").as_ref())))
+        .map(|r| {
+            r.map(|_| {
+                hits.next()
+                    .expect("a hit a ray")
+                    .map_or(NO_HIT, |h| h.object)
+            })
+        })
         .collect()
 }
 

@@ -330,14 +330,13 @@ impl<'a> Synthesizer<'a> {
         let start = Instant::now();
         let poses = self.scene.at(t);
         let spare = self.spare_for(camera);
-        let new_image = |meta| blank(spare, meta);
         let buffer = &self.buffers[0];
         let seen = |j: usize| !buffer[j].is_empty();
         let (mut image, holes) = match &fine_image {
             Some(f) => downsample(
                 self.scene,
                 &poses,
-                new_image,
+                spare,
                 (camera, k, &f.meta),
                 seen,
                 |j| f.radiance[j],
@@ -357,7 +356,7 @@ impl<'a> Synthesizer<'a> {
                 downsample(
                     self.scene,
                     &poses,
-                    new_image,
+                    spare,
                     (camera, k, &meta),
                     seen,
                     |j| buffer[j].radiance / buffer[j].w,
@@ -659,23 +658,26 @@ pub const MAX_SUPERSAMPLE: u32 = 4;
 /// with the distance where its centre ray meets that surface's triangle
 /// (at `poses`), as a render's would be; a pixel none reached is a hole. A
 /// pixel part of which shows a light takes the light's surface, so that
-/// tracing lights' rims ([`lights`]) finds it. Returns the frame and its
-/// holes.
+/// tracing lights' rims ([`lights`]) finds it. Written into `spare`'s
+/// planes where given. Returns the frame and its holes.
 #[allow(clippy::too_many_arguments)]
 fn downsample(
     scene: &Scene,
     poses: &[Affine3A],
-    blank: impl FnOnce(RangeMeta) -> RangeImage,
+    spare: Option<RangeImage>,
     (camera, k, meta): (&Camera, u32, &RangeMeta),
     seen: impl Fn(usize) -> bool + Sync,
     radiance: impl Fn(usize) -> Vec3 + Sync,
     object: impl Fn(usize) -> u32 + Sync,
     surface: impl Fn(usize) -> (f32, u32, u32, Vec3) + Sync,
 ) -> (RangeImage, usize) {
-    let mut image = blank(RangeMeta {
-        camera: *camera,
-        ..meta.clone()
-    });
+    let mut image = blank(
+        spare,
+        RangeMeta {
+            camera: *camera,
+            ..meta.clone()
+        },
+    );
     let (w, k) = (camera.width as usize, k as usize);
     let fw = w * k;
     let emissive = lights::emissive(scene);

@@ -222,6 +222,7 @@ pub struct WalkArgs {
 pub fn walk(args: &WalkArgs) -> Result<()> {
     let options = args.synth.options()?;
     image::check_output_dir("--out", &args.out)?;
+    rangewalk::output::check_only(&args.out, &walk::CONTENTS)?;
     let (scene, bake) = args.synth.open(&args.bake)?;
     let mut synth = Synthesizer::new(&scene, &bake, args.synth.base_memory << 20);
     let settings = WalkSettings {

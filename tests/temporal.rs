@@ -257,7 +257,8 @@ mod bake {
         let series = run(&scene, 0.0, |_, _| Vec3::ONE);
         let e = save(&dir, &scene, &Simplified::whole(&scene), &series).unwrap_err();
         assert!(
-            format!("{e:#}").contains("refusing to replace") && format!("{e:#}").contains("notes.txt"),
+            format!("{e:#}").contains("refusing to replace")
+                && format!("{e:#}").contains("notes.txt"),
             "{e:#}"
         );
         assert!(dir.join("notes.txt").exists());

@@ -385,7 +385,6 @@ pub fn partial_path(dir: &Path) -> PathBuf {
     dir.with_file_name(name)
 }
 
-
 /// Reads a binary file and checks it against its manifest entry: length,
 /// element size and checksum.
 fn read_checked(dir: &Path, e: &FileEntry, elem: usize, field: &str) -> Result<Vec<u8>> {

@@ -814,6 +814,11 @@ impl BakeOptions {
             seed: self.seed,
             backend: self.backend,
             max_depth: self.max_depth,
+            planning: bake::Planning {
+                resolution: self.resolution,
+                master_list: self.master_list,
+                view_fitness: self.view_fitness,
+            },
         };
         Ok((settings, why))
     }
@@ -888,6 +893,12 @@ fn bake_command(args: BakeArgs) -> Result<()> {
     } else {
         bake::run(&s, out, &settings, shard, engine.as_mut(), plan)?
     };
+    if summary.removed > 0 {
+        println!(
+            "removed {} temporary files left by a stopped run",
+            summary.removed
+        );
+    }
     let manifest = bake::Manifest::read(out)?;
     let p = &manifest.plan;
     match summary.plan_seconds {
@@ -974,7 +985,9 @@ fn some_of(files: &[String]) -> String {
     s
 }
 
-/// `rangewalk bake --status`: how many images are done.
+/// `rangewalk bake --status`: how many images are done, who is working
+/// on them, and what to do next. Takes no lock: it watches a bake that
+/// may run anywhere.
 fn bake_status(dir: &Path) -> Result<()> {
     let st = bake::status::status(dir)?;
     let radiosity = match st.radiosity {
@@ -982,20 +995,33 @@ fn bake_status(dir: &Path) -> Result<()> {
         Some(true) => "; radiosity solved",
         Some(false) => "; radiosity not solved yet",
     };
+    let missing = st.total - st.done;
+    let verdict = if st.complete {
+        "bake complete".to_string()
+    } else if st.sealed {
+        format!(
+            "not complete: {missing} of its images went missing after the bake was completed; run the bake command again to render them again"
+        )
+    } else if missing == 0 && st.running.is_empty() {
+        format!(
+            "not complete: every image is done but not checked yet; run `rangewalk bake --finish {}` (or the bake command again)",
+            dir.display()
+        )
+    } else {
+        "not complete".to_string()
+    };
     println!(
-        "{}: {} of {} images done ({:.0}%){radiosity}; {}",
+        "{}: {} of {} images done ({:.0}%){radiosity}; {verdict}",
         dir.display(),
         st.done,
         st.total,
         100.0 * st.done as f64 / st.total.max(1) as f64,
-        if st.complete {
-            "bake complete"
-        } else {
-            "not complete"
-        }
     );
     if !st.missing.is_empty() {
         println!("  to do: {}", some_of(&st.missing));
+    }
+    for h in &st.running {
+        println!("  running: {h}");
     }
     Ok(())
 }
@@ -1003,6 +1029,12 @@ fn bake_status(dir: &Path) -> Result<()> {
 /// `rangewalk bake --finish`: every image checked, the bake sealed.
 fn bake_finish(dir: &Path) -> Result<()> {
     let st = bake::status::finish(dir)?;
+    if st.removed > 0 {
+        println!(
+            "removed {} temporary files left by a stopped run",
+            st.removed
+        );
+    }
     if !st.missing.is_empty() {
         bail!(
             "{}: {} of {} images missing or damaged: {}; run their shards again (or the same bake or slurm command), then finish again",

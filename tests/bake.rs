@@ -60,6 +60,7 @@ fn tiny(indirect: IndirectSource) -> Settings {
         seed: 5,
         backend: Backend::Bvh,
         max_depth: None,
+        planning: Default::default(),
     }
 }
 

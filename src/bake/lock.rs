@@ -197,8 +197,16 @@ impl Setup {
     /// returned [`Running`].
     pub fn register(&self, me: &Holder, others: &[Holder]) -> Result<Running> {
         if let Some(h) = others.iter().find(|h| h.overlaps(me)) {
+            let shards = if h.shard_count > 1 {
+                format!(
+                    "; only the other shards of its bake (--shard i/{}) may run beside it",
+                    h.shard_count
+                )
+            } else {
+                String::new()
+            };
             bail!(
-                "{} is in use: {h}; two runs must not work on the same images: wait for it to end or stop it (a stopped bake resumes), or run other shards of the same bake (--shard i/n with the same n)",
+                "{} is in use by {h}, on images this run needs too: wait for it to end, or stop it (a stopped bake resumes){shards}",
                 self.dir.display()
             );
         }
@@ -296,8 +304,8 @@ fn live(dir: &Path, tidy: bool) -> Vec<Holder> {
                     let _ = fs::remove_file(&path);
                 }
             }
-            Err(TryLockError::WouldBlock) => out.push(read_holder(&mut file).unwrap_or_else(|| {
-                Holder {
+            Err(TryLockError::WouldBlock) => {
+                out.push(read_holder(&mut file).unwrap_or_else(|| Holder {
                     pid: 0,
                     host: "an unknown host".into(),
                     command: path.display().to_string(),
@@ -305,8 +313,8 @@ fn live(dir: &Path, tidy: bool) -> Vec<Holder> {
                     shard_index: 0,
                     shard_count: 1,
                     started: now(),
-                }
-            })),
+                }))
+            }
             Err(TryLockError::Error(_)) => {}
         }
     }
@@ -343,7 +351,12 @@ mod tests {
             let (a, b) = (holder(a.0, a.1), holder(b.0, b.1));
             assert!(!a.overlaps(&b) && !b.overlaps(&a), "{a:?} {b:?}");
         }
-        for (a, b) in [((0, 1), (1, 2)), ((0, 2), (0, 2)), ((1, 2), (3, 4)), ((0, 3), (3, 6))] {
+        for (a, b) in [
+            ((0, 1), (1, 2)),
+            ((0, 2), (0, 2)),
+            ((1, 2), (3, 4)),
+            ((0, 3), (3, 6)),
+        ] {
             let (a, b) = (holder(a.0, a.1), holder(b.0, b.1));
             assert!(a.overlaps(&b) && b.overlaps(&a), "{a:?} {b:?}");
         }

@@ -86,8 +86,12 @@ impl Manifest {
             // recorded it). So an older bake resumes, or is refused, as a
             // new one would be.
             2 => {
+                let quality = crate::radiosity::Quality::new(m.settings.quality)
+                    .with_context(|| format!("{}: `settings.quality`", path.display()))?;
+                let side = m.plan.resolution;
                 m.settings.planning = super::Planning {
-                    resolution: Some(m.plan.resolution),
+                    // As a new manifest records it: `None` for the default.
+                    resolution: (side != crate::plan::default_resolution(quality)).then_some(side),
                     master_list: m.plan.master_list,
                     view_fitness: m.plan.view_fitness,
                 }

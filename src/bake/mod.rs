@@ -120,16 +120,17 @@ pub struct Settings {
 /// --resolution`, `--master-list`, `--view-fitness`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Planning {
-    /// Side of the id-images; `None`: the quality's default, which
-    /// [`Settings::resolved`] writes out so that naming the default
-    /// resumes a bake made without naming it.
+    /// Side of the id-images; `None`: the quality's default (naming the
+    /// default resumes a bake made without naming it, see
+    /// [`Settings::resolved`]).
     pub resolution: Option<u32>,
     pub master_list: bool,
     pub view_fitness: ViewFitness,
 }
 
 impl Settings {
-    /// These settings with the planner's id-image side written out.
+    /// These settings with the planner's id-image side written out: two
+    /// settings make the same bake when their resolved forms are equal.
     pub fn resolved(&self) -> Result<Settings> {
         let quality = Quality::new(self.quality).context("--quality")?;
         let mut s = *self;
@@ -322,7 +323,7 @@ pub fn run_observed(
     // Registered while the manifest is checked under the bake's lock, and
     // for as long as this run renders.
     let (mut manifest, _running) = {
-        let setup = lock_bake(dir, &me)?;
+        let setup = lock_bake(dir, settings, &me)?;
         let manifest = start_or_resume(scene, dir, settings, engine, plan, &mut summary, &setup)?;
         let others = setup.running();
         let running = setup.register(&me, &others)?;
@@ -431,7 +432,7 @@ pub fn prepare(
     let mut summary = Summary::default();
     let me = lock::Holder::me("preparing", Shard::ALL);
     // Held throughout: preparing is the serial part of the bake.
-    let setup = lock_bake(dir, &me)?;
+    let setup = lock_bake(dir, settings, &me)?;
     let manifest = start_or_resume(scene, dir, settings, engine, plan, &mut summary, &setup)?;
     if setup.running().is_empty() {
         summary.removed = setup.remove_temporaries()?;
@@ -447,9 +448,13 @@ pub fn prepare(
 }
 
 /// Takes the bake's lock (see [`lock`]) for its serial steps, first
-/// refusing a directory that holds something else: no lock file is left
-/// in someone else's folder.
-fn lock_bake(dir: &Path, me: &lock::Holder) -> Result<lock::Setup> {
+/// refusing settings that cannot make a bake and a directory that holds
+/// something else: no lock file is left for nothing, or in someone else's
+/// folder.
+fn lock_bake(dir: &Path, settings: &Settings, me: &lock::Holder) -> Result<lock::Setup> {
+    ensure!(settings.spp > 0, "--spp must be at least 1");
+    ensure!(settings.size > 0, "--size must be at least 1");
+    settings.resolved()?;
     if !dir.join(manifest::MANIFEST).exists() {
         check_fresh(dir)?;
     }
@@ -489,7 +494,7 @@ pub fn check_resumable(scene: &Scene, dir: &Path, settings: &Settings) -> Result
         &Manifest::read(dir)?,
         dir,
         &ContentHash::of(scene)?,
-        &settings.resolved()?,
+        settings,
     )
 }
 
@@ -531,16 +536,13 @@ fn start_or_resume(
     summary: &mut Summary,
     setup: &lock::Setup,
 ) -> Result<Manifest> {
-    ensure!(settings.spp > 0, "--spp must be at least 1");
-    ensure!(settings.size > 0, "--size must be at least 1");
-    let settings = &settings.resolved()?;
     let hash = ContentHash::of(scene)?;
     let manifest = if dir.join(manifest::MANIFEST).exists() {
         let m = Manifest::read(dir)?;
         if let Err(e) = check_fits(&m, dir, &hash, settings) {
             // Name who is baking it now, if anyone: the likely author.
             return Err(match setup.running().first() {
-                Some(h) => e.context(format!("{h} is baking it now")),
+                Some(h) => anyhow::anyhow!("{e:#}; it is being baked now by {h}"),
                 None => e,
             });
         }
@@ -585,11 +587,12 @@ fn check_fits(m: &Manifest, dir: &Path, hash: &ContentHash, settings: &Settings)
             changes.join(", ")
         );
     }
-    if m.settings != *settings {
+    let (was, now) = (m.settings.resolved()?, settings.resolved()?);
+    if was != now {
         bail!(
             "{} was baked with other settings ({}); use them to resume it, or another directory",
             dir.display(),
-            describe_difference(&m.settings, settings)
+            describe_difference(&was, &now)
         );
     }
     Ok(())

@@ -9,14 +9,15 @@
 //!   instead of racing to write a manifest or a radiosity bake of its own.
 //!   A second run with other settings then finds the first one's manifest
 //!   and is refused by the settings check.
-//! - `.running/<host>.<pid>.<n>`, one file per run that renders or
+//! - `.running/<i>-of-<n>.<host>.<pid>.<k>`, one file per run that renders or
 //!   finishes, locked exclusively for the run's whole life and naming its
-//!   process, host, command and shard. Under `.lock`, a starting run reads
-//!   the live ones (a file it can lock is a dead run's, and is removed) and
-//!   refuses to render images another live run renders: shards `i/n` of one
-//!   count share a bake, a second full bake or a repeated shard does not.
-//!   When no other run is alive, nothing else can be writing the bake, and
-//!   the temporary files of killed runs are removed.
+//!   process, host, command and shard. Under `.lock`, a starting run probes
+//!   the ones whose names give a shard sharing an image with its own (a
+//!   file it can lock is a dead run's, and is removed) and refuses to
+//!   render images a live run renders: shards `i/n` of one count share a
+//!   bake, a second full bake or a repeated shard does not. When no other
+//!   run is alive, nothing else can be writing the bake, and the temporary
+//!   files of killed runs are removed.
 //!
 //! Holder files rather than one shared lock: shards come and go
 //! independently, and each refusal can name exactly the run in the way.
@@ -83,13 +84,17 @@ impl Holder {
         }
     }
 
-    /// Whether it and `other` have an image in common: shards `i/n` and
-    /// `j/m` both own image `k` iff `i ≡ j (mod gcd(n, m))`.
+    /// Whether it and `other` have an image in common.
     pub fn overlaps(&self, other: &Holder) -> bool {
-        let (a, b) = (self.shard(), other.shard());
-        let g = gcd(a.count, b.count);
-        a.index % g == b.index % g
+        overlap(self.shard(), other.shard())
     }
+}
+
+/// Whether two shards have an image in common: shards `i/n` and `j/m` both
+/// own image `k` iff `i ≡ j (mod gcd(n, m))`.
+fn overlap(a: Shard, b: Shard) -> bool {
+    let g = gcd(a.count, b.count);
+    a.index % g == b.index % g
 }
 
 impl std::fmt::Display for Holder {
@@ -186,17 +191,27 @@ impl Setup {
         })
     }
 
-    /// The runs alive now, other than this one's; removes the files of
-    /// dead ones (nothing else can register while the lock is held).
-    pub fn running(&self) -> Vec<Holder> {
-        live(&self.dir, true)
+    /// A live run, if there is any; removes the files of dead runs it
+    /// meets (nothing registers while the lock is held, so none is new).
+    /// Stops at the first live one: with a thousand array tasks running,
+    /// probing them all, in every task, would cost a million lock calls.
+    pub fn anyone(&self) -> Option<Holder> {
+        scan(&self.dir, true, |_| true, true).pop()
     }
 
     /// Registers `me` as rendering (or reading) its images, refusing when
     /// a live run has any of them; the registration lasts as long as the
-    /// returned [`Running`].
-    pub fn register(&self, me: &Holder, others: &[Holder]) -> Result<Running> {
-        if let Some(h) = others.iter().find(|h| h.overlaps(me)) {
+    /// returned [`Running`]. Probes only the runs whose file names a
+    /// shard that shares an image with `me`.
+    pub fn register(&self, me: &Holder) -> Result<Running> {
+        let mine = me.shard();
+        let in_the_way = scan(
+            &self.dir,
+            true,
+            |s| s.is_none_or(|s| overlap(s, mine)),
+            true,
+        );
+        if let Some(h) = in_the_way.iter().find(|h| h.overlaps(me)) {
             let shards = if h.shard_count > 1 {
                 format!(
                     "; only the other shards of its bake (--shard i/{}) may run beside it",
@@ -214,7 +229,9 @@ impl Setup {
         fs::create_dir_all(&folder).with_context(|| format!("creating {}", folder.display()))?;
         static SEQUENCE: AtomicU64 = AtomicU64::new(0);
         let path = folder.join(format!(
-            "{}.{}.{}",
+            "{}-of-{}.{}.{}.{}",
+            mine.index,
+            mine.count,
             me.host.replace(['/', '\\'], "_"),
             me.pid,
             SEQUENCE.fetch_add(1, Ordering::Relaxed)
@@ -280,17 +297,39 @@ impl Drop for Running {
 /// The runs alive in the bake in `dir` now, for a report: takes no lock
 /// and removes nothing.
 pub fn running(dir: &Path) -> Vec<Holder> {
-    live(dir, false)
+    scan(dir, false, |_| true, false)
 }
 
-/// The holders of the files someone holds locked; with `tidy`, removes the
-/// files of dead runs.
-fn live(dir: &Path, tidy: bool) -> Vec<Holder> {
+/// The shard a registration's file name (`<i>-of-<n>.<host>.<pid>.<k>`)
+/// gives, if it gives one.
+fn shard_of(name: &std::ffi::OsStr) -> Option<Shard> {
+    let name = name.to_str()?;
+    let (i, n) = name.split('.').next()?.split_once("-of-")?;
+    let (index, count) = (i.parse().ok()?, n.parse().ok()?);
+    (index < count).then_some(Shard { index, count })
+}
+
+/// The holders of the registrations whose names `wanted` admits (a name
+/// without a shard is passed as `None`) that someone holds locked; with
+/// `tidy`, removes the files of dead runs probed; with `first`, stops at
+/// the first live one.
+fn scan(
+    dir: &Path,
+    tidy: bool,
+    wanted: impl Fn(Option<Shard>) -> bool,
+    first: bool,
+) -> Vec<Holder> {
     let Ok(entries) = dir.join(RUNNING).read_dir() else {
         return Vec::new();
     };
     let mut out = Vec::new();
     for e in entries.flatten() {
+        if first && !out.is_empty() {
+            break;
+        }
+        if !wanted(shard_of(&e.file_name())) {
+            continue;
+        }
         let path = e.path();
         let Ok(mut file) = File::open(&path) else {
             continue;
@@ -346,6 +385,17 @@ mod tests {
     }
 
     #[test]
+    fn a_registration_names_its_shard() {
+        assert_eq!(
+            shard_of("3-of-4.node7.12.0".as_ref()),
+            Some(Shard { index: 3, count: 4 })
+        );
+        for bad in ["4-of-4.h.1.0", "junk", "x-of-2.h.1.0"] {
+            assert_eq!(shard_of(bad.as_ref()), None, "{bad}");
+        }
+    }
+
+    #[test]
     fn shards_overlap_exactly_when_they_share_an_image() {
         for (a, b) in [((0, 2), (1, 2)), ((0, 2), (1, 4)), ((1, 3), (2, 6))] {
             let (a, b) = (holder(a.0, a.1), holder(b.0, b.1));
@@ -378,24 +428,31 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path();
         let setup = Setup::acquire(dir, &holder(0, 1)).unwrap();
-        let first = setup.register(&holder(0, 2), &[]).unwrap();
-        let others = setup.running();
+        assert_eq!(setup.anyone(), None);
+        let first = setup.register(&holder(0, 2)).unwrap();
+        let others = running(dir);
         assert_eq!(others.len(), 1);
         assert_eq!(others[0].shard(), Shard { index: 0, count: 2 });
+        assert_eq!(setup.anyone().as_ref(), Some(&others[0]));
         // The other shard shares the bake; the whole bake and the same shard
         // do not.
-        let second = setup.register(&holder(1, 2), &others).unwrap();
-        for (i, n) in [(0, 1), (0, 2), (2, 4)] {
-            let err = setup.register(&holder(i, n), &others).unwrap_err();
+        let second = setup.register(&holder(1, 2)).unwrap();
+        assert_eq!(running(dir).len(), 2);
+        for (i, n) in [(0, 1), (0, 2), (2, 4), (3, 4)] {
+            let err = setup.register(&holder(i, n)).unwrap_err();
             assert!(err.to_string().contains("(this process)"), "{err}");
         }
         drop((first, second));
-        assert!(setup.running().is_empty());
-        // A file nobody holds is a dead run's: not counted, and removed.
-        fs::write(dir.join(RUNNING).join("elsewhere.1.0"), "{}").unwrap();
         assert!(running(dir).is_empty());
-        assert!(dir.join(RUNNING).join("elsewhere.1.0").exists());
-        assert!(setup.running().is_empty());
-        assert!(!dir.join(RUNNING).join("elsewhere.1.0").exists());
+        // Files nobody holds are dead runs': not counted, and removed when
+        // probed under the lock.
+        for name in ["0-of-1.elsewhere.1.0", "junk"] {
+            fs::write(dir.join(RUNNING).join(name), "{}").unwrap();
+        }
+        assert!(running(dir).is_empty());
+        assert!(dir.join(RUNNING).join("junk").exists());
+        let third = setup.register(&holder(1, 2)).unwrap();
+        assert_eq!(fs::read_dir(dir.join(RUNNING)).unwrap().count(), 1);
+        drop(third);
     }
 }

@@ -325,9 +325,9 @@ pub fn run_observed(
     let (mut manifest, _running) = {
         let setup = lock_bake(dir, settings, &me)?;
         let manifest = start_or_resume(scene, dir, settings, engine, plan, &mut summary, &setup)?;
-        let others = setup.running();
-        let running = setup.register(&me, &others)?;
-        if others.is_empty() {
+        let alone = setup.anyone().is_none();
+        let running = setup.register(&me)?;
+        if alone {
             summary.removed = setup.remove_temporaries()?;
         }
         (manifest, running)
@@ -434,7 +434,7 @@ pub fn prepare(
     // Held throughout: preparing is the serial part of the bake.
     let setup = lock_bake(dir, settings, &me)?;
     let manifest = start_or_resume(scene, dir, settings, engine, plan, &mut summary, &setup)?;
-    if setup.running().is_empty() {
+    if setup.anyone().is_none() {
         summary.removed = setup.remove_temporaries()?;
     }
     if settings.indirect == IndirectSource::Radiosity {
@@ -541,7 +541,7 @@ fn start_or_resume(
         let m = Manifest::read(dir)?;
         if let Err(e) = check_fits(&m, dir, &hash, settings) {
             // Name who is baking it now, if anyone: the likely author.
-            return Err(match setup.running().first() {
+            return Err(match setup.anyone() {
                 Some(h) => anyhow::anyhow!("{e:#}; it is being baked now by {h}"),
                 None => e,
             });

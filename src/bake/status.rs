@@ -81,9 +81,8 @@ pub fn finish(dir: &Path) -> Result<Status> {
     let (mut m, removed, _running) = {
         let setup = lock::Setup::acquire(dir, &me)?;
         let m = Manifest::read(dir)?;
-        let others = setup.running();
         // Working on every image, it is alone once registered.
-        let running = setup.register(&me, &others)?;
+        let running = setup.register(&me)?;
         (m, setup.remove_temporaries()?, running)
     };
     let unchecked = vec![false; m.images.len()];

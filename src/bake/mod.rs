@@ -323,8 +323,19 @@ pub fn run_observed(
     // Registered while the manifest is checked under the bake's lock, and
     // for as long as this run renders.
     let (mut manifest, _running) = {
+        // Hashed outside the lock, which shards take one after another.
+        let hash = ContentHash::of(scene)?;
         let setup = lock_bake(dir, settings, &me)?;
-        let manifest = start_or_resume(scene, dir, settings, engine, plan, &mut summary, &setup)?;
+        let manifest = start_or_resume(
+            scene,
+            &hash,
+            dir,
+            settings,
+            engine,
+            plan,
+            &mut summary,
+            &setup,
+        )?;
         let alone = setup.anyone().is_none();
         let running = setup.register(&me)?;
         if alone {
@@ -432,8 +443,18 @@ pub fn prepare(
     let mut summary = Summary::default();
     let me = lock::Holder::me("preparing", Shard::ALL);
     // Held throughout: preparing is the serial part of the bake.
+    let hash = ContentHash::of(scene)?;
     let setup = lock_bake(dir, settings, &me)?;
-    let manifest = start_or_resume(scene, dir, settings, engine, plan, &mut summary, &setup)?;
+    let manifest = start_or_resume(
+        scene,
+        &hash,
+        dir,
+        settings,
+        engine,
+        plan,
+        &mut summary,
+        &setup,
+    )?;
     if setup.anyone().is_none() {
         summary.removed = setup.remove_temporaries()?;
     }
@@ -527,8 +548,10 @@ fn check_fresh(dir: &Path) -> Result<()> {
 /// The bake's manifest: read and checked against this scene and these
 /// settings, or, when starting, planned (with `plan`) and written; under
 /// the bake's lock (`_setup`), so that runs started together make one.
+#[allow(clippy::too_many_arguments)]
 fn start_or_resume(
     scene: &Scene,
+    hash: &ContentHash,
     dir: &Path,
     settings: &Settings,
     engine: &mut dyn InstancedEngine,
@@ -536,10 +559,9 @@ fn start_or_resume(
     summary: &mut Summary,
     setup: &lock::Setup,
 ) -> Result<Manifest> {
-    let hash = ContentHash::of(scene)?;
     let manifest = if dir.join(manifest::MANIFEST).exists() {
         let m = Manifest::read(dir)?;
-        if let Err(e) = check_fits(&m, dir, &hash, settings) {
+        if let Err(e) = check_fits(&m, dir, hash, settings) {
             // Name who is baking it now, if anyone: the likely author.
             return Err(match setup.anyone() {
                 Some(h) => anyhow::anyhow!("{e:#}; it is being baked now by {h}"),
@@ -561,7 +583,7 @@ fn start_or_resume(
             format: manifest::FORMAT.into(),
             version: manifest::VERSION,
             scene: std::fs::canonicalize(&scene.source).unwrap_or_else(|_| scene.source.clone()),
-            scene_hash: hash,
+            scene_hash: hash.clone(),
             settings: *settings,
             images: image_entries(&plan),
             plan,

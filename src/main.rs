@@ -750,13 +750,14 @@ struct BakeArgs {
     /// distributed bake, before the shards.
     #[arg(long, conflicts_with_all = ["shard", "shard_from_env"])]
     prepare: bool,
-    /// Count the done images of the bake in DIR (it may be running
-    /// elsewhere) and exit.
+    /// Count the done images of the bake in DIR and name the runs working
+    /// on it (they may run elsewhere), and exit. Takes no lock.
     #[arg(long, value_name = "DIR", exclusive = true)]
     status: Option<PathBuf>,
     /// Read every image of the bake in DIR back against its checksum and
     /// mark the bake complete; fails, naming them, if any is missing or
-    /// damaged. The last job of a distributed bake.
+    /// damaged, and is refused while a run renders. The last job of a
+    /// distributed bake.
     #[arg(long, value_name = "DIR", exclusive = true)]
     finish: Option<PathBuf>,
 }

@@ -69,6 +69,7 @@ fn synth(c: &mut Criterion) {
             seed: 1,
             backend: Backend::default_available(),
             max_depth: Some(2),
+            planning: Default::default(),
         };
         let mut engine =
             accel::build(settings.backend, &scene.geometry(), &scene.at(0.0)).expect("ray engine");

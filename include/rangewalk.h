@@ -252,8 +252,9 @@ rw_status rw_bake_options_default(rw_bake_options *options);
 // `dir` (which must have been started with the same scene and options).
 // `progress` may be NULL. Returns `RW_OK` when this run's images are done
 // (with shards, the bake is complete when every shard's are).
-// Thread-safe for different directories; one directory takes one bake at
-// a time.
+// Thread-safe. One directory takes one bake at a time (shards of one bake
+// together): a second run on images a running one renders, in this or
+// another process, returns `RW_BAKE` naming the holder's process.
 //
 // # Safety
 // `scene` is NULL or a live scene; `options` NULL or readable for its

@@ -751,13 +751,14 @@ struct BakeArgs {
     /// distributed bake, before the shards.
     #[arg(long, conflicts_with_all = ["shard", "shard_from_env"])]
     prepare: bool,
-    /// Count the done images of the bake in DIR (it may be running
-    /// elsewhere) and exit.
+    /// Count the done images of the bake in DIR and name the runs working
+    /// on it (they may run elsewhere), and exit. Takes no lock.
     #[arg(long, value_name = "DIR", exclusive = true)]
     status: Option<PathBuf>,
     /// Read every image of the bake in DIR back against its checksum and
     /// mark the bake complete; fails, naming them, if any is missing or
-    /// damaged. The last job of a distributed bake.
+    /// damaged, and is refused while a run renders. The last job of a
+    /// distributed bake.
     #[arg(long, value_name = "DIR", exclusive = true)]
     finish: Option<PathBuf>,
 }
@@ -815,6 +816,11 @@ impl BakeOptions {
             seed: self.seed,
             backend: self.backend,
             max_depth: self.max_depth,
+            planning: bake::Planning {
+                resolution: self.resolution,
+                master_list: self.master_list,
+                view_fitness: self.view_fitness,
+            },
         };
         Ok((settings, why))
     }
@@ -889,6 +895,12 @@ fn bake_command(args: BakeArgs) -> Result<()> {
     } else {
         bake::run(&s, out, &settings, shard, engine.as_mut(), plan)?
     };
+    if summary.removed > 0 {
+        println!(
+            "removed {} temporary files left by a stopped run",
+            summary.removed
+        );
+    }
     let manifest = bake::Manifest::read(out)?;
     let p = &manifest.plan;
     match summary.plan_seconds {
@@ -975,7 +987,9 @@ fn some_of(files: &[String]) -> String {
     s
 }
 
-/// `rangewalk bake --status`: how many images are done.
+/// `rangewalk bake --status`: how many images are done, who is working
+/// on them, and what to do next. Takes no lock: it watches a bake that
+/// may run anywhere.
 fn bake_status(dir: &Path) -> Result<()> {
     let st = bake::status::status(dir)?;
     let radiosity = match st.radiosity {
@@ -983,20 +997,33 @@ fn bake_status(dir: &Path) -> Result<()> {
         Some(true) => "; radiosity solved",
         Some(false) => "; radiosity not solved yet",
     };
+    let missing = st.total - st.done;
+    let verdict = if st.complete {
+        "bake complete".to_string()
+    } else if st.sealed {
+        format!(
+            "not complete: {missing} of its images went missing after the bake was completed; run the bake command again to render them again"
+        )
+    } else if missing == 0 && st.running.is_empty() {
+        format!(
+            "not complete: every image is done but not checked yet; run `rangewalk bake --finish {}` (or the bake command again)",
+            dir.display()
+        )
+    } else {
+        "not complete".to_string()
+    };
     println!(
-        "{}: {} of {} images done ({:.0}%){radiosity}; {}",
+        "{}: {} of {} images done ({:.0}%){radiosity}; {verdict}",
         dir.display(),
         st.done,
         st.total,
         100.0 * st.done as f64 / st.total.max(1) as f64,
-        if st.complete {
-            "bake complete"
-        } else {
-            "not complete"
-        }
     );
     if !st.missing.is_empty() {
         println!("  to do: {}", some_of(&st.missing));
+    }
+    for h in &st.running {
+        println!("  running: {h}");
     }
     Ok(())
 }
@@ -1004,6 +1031,12 @@ fn bake_status(dir: &Path) -> Result<()> {
 /// `rangewalk bake --finish`: every image checked, the bake sealed.
 fn bake_finish(dir: &Path) -> Result<()> {
     let st = bake::status::finish(dir)?;
+    if st.removed > 0 {
+        println!(
+            "removed {} temporary files left by a stopped run",
+            st.removed
+        );
+    }
     if !st.missing.is_empty() {
         bail!(
             "{}: {} of {} images missing or damaged: {}; run their shards again (or the same bake or slurm command), then finish again",

@@ -60,6 +60,7 @@ fn tiny(indirect: IndirectSource) -> Settings {
         seed: 5,
         backend: Backend::Bvh,
         max_depth: None,
+        planning: Default::default(),
     }
 }
 
@@ -410,4 +411,79 @@ fn shards_parse_and_split_every_image_once() {
             assert_eq!(owners, 1);
         }
     }
+}
+
+#[test]
+fn shards_of_one_bake_run_together_and_other_runs_on_their_images_are_refused() {
+    let scene = &load(&scene_path("cornell-box"));
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = &tmp.path().join("bake");
+    let settings = &tiny(IndirectSource::Path);
+    let try_bake = |settings: &Settings, shard| {
+        let mut e = engine(scene, settings.backend);
+        let plan = two_by_two(scene);
+        bake::run(scene, dir, settings, shard, e.as_mut(), |_| Ok(plan))
+    };
+    let (paused, wait_paused) = std::sync::mpsc::channel();
+    let (go, wait_go) = std::sync::mpsc::channel::<()>();
+    std::thread::scope(|s| {
+        // Shard 0/2 stops at its first progress report (registered, before
+        // its first image) until the others have been tried.
+        let first = s.spawn(move || {
+            let mut e = engine(scene, settings.backend);
+            let plan = two_by_two(scene);
+            let mut observe = |f: f32| {
+                if f == 0.0 {
+                    paused.send(()).unwrap();
+                    wait_go.recv().unwrap();
+                }
+                true
+            };
+            let shard = Shard { index: 0, count: 2 };
+            bake::run_observed(
+                scene,
+                dir,
+                settings,
+                shard,
+                e.as_mut(),
+                |_| Ok(plan),
+                &mut observe,
+            )
+        });
+        wait_paused.recv().unwrap();
+        // A temporary file while a shard runs may be that shard's own.
+        let stray = dir.join("images").join(".v000-t000.exr.1-0.partial");
+        std::fs::write(&stray, b"half").unwrap();
+        let other = try_bake(settings, Shard { index: 1, count: 2 }).unwrap();
+        assert_eq!(
+            (other.rendered, other.removed, other.complete),
+            (2, 0, false)
+        );
+        assert!(stray.exists());
+        let more = Settings {
+            spp: 3,
+            ..*settings
+        };
+        for (settings, shard, needle) in [
+            (settings, Shard::ALL, "in use"),
+            (settings, Shard { index: 0, count: 2 }, "in use"),
+            (settings, Shard { index: 2, count: 4 }, "in use"),
+            (&more, Shard { index: 1, count: 2 }, "--spp 2, not 3"),
+        ] {
+            let err = format!("{:#}", try_bake(settings, shard).unwrap_err());
+            assert!(
+                err.contains(needle)
+                    && err.contains("baking shard 0/2")
+                    && (needle != "in use" || err.contains("--shard i/2")),
+                "{shard:?}: {err}"
+            );
+        }
+        go.send(()).unwrap();
+        let first = first.join().unwrap().unwrap();
+        assert_eq!((first.rendered, first.complete), (2, true));
+        // Alone, a run knows nothing else writes the bake, and removes it.
+        let again = try_bake(settings, Shard::ALL).unwrap();
+        assert_eq!((again.rendered, again.removed), (0, 1));
+        assert!(!stray.exists());
+    });
 }

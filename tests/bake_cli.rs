@@ -187,3 +187,246 @@ fn bake_errors_name_the_option_or_file_at_fault() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(!r.status.success() && err.contains("not a bake"), "{err}");
 }
+
+/// `rangewalk bake` of the Cornell box with traced indirect light (no
+/// radiosity to solve) into `out`.
+fn traced<'a>(scene: &'a str, out: &'a str, size: &'a str, spp: &'a str) -> Vec<&'a str> {
+    vec![
+        "bake",
+        scene,
+        "--quality",
+        "0.3",
+        "--out",
+        out,
+        "--size",
+        size,
+        "--spp",
+        spp,
+        "--backend",
+        "bvh",
+        "--indirect",
+        "path",
+    ]
+}
+
+fn with<'a>(mut a: Vec<&'a str>, extra: &[&'a str]) -> Vec<&'a str> {
+    a.extend_from_slice(extra);
+    a
+}
+
+fn text(o: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn two_bakes_with_other_settings_on_one_empty_folder_make_one_bake_and_one_error() {
+    let scene = scene("cornell-box");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("b");
+    let o = out.to_str().unwrap();
+    let runs: Vec<(&str, Child)> = ["2", "3"]
+        .into_iter()
+        .map(|spp| {
+            let child = Command::new(env!("CARGO_BIN_EXE_rangewalk"))
+                .args(traced(&scene, o, "32", spp))
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .expect("start rangewalk");
+            (spp, child)
+        })
+        .collect();
+    let ends: Vec<(&str, Output)> = runs
+        .into_iter()
+        .map(|(spp, c)| (spp, c.wait_with_output().unwrap()))
+        .collect();
+    let won: Vec<&str> = ends
+        .iter()
+        .filter(|(_, e)| e.status.success())
+        .map(|(spp, _)| *spp)
+        .collect();
+    assert_eq!(
+        won.len(),
+        1,
+        "{:?}",
+        ends.iter().map(|(_, e)| text(e)).collect::<Vec<_>>()
+    );
+    let (_, lost) = ends.iter().find(|(spp, _)| *spp != won[0]).unwrap();
+    let err = text(lost).1;
+    assert!(
+        err.contains("other settings") && err.contains("--spp"),
+        "{err}"
+    );
+    let m = Manifest::read(&out).unwrap();
+    assert_eq!(m.settings.spp.to_string(), won[0]);
+    assert!(m.complete);
+}
+
+#[test]
+fn a_running_bake_is_named_to_every_run_in_its_way_and_its_leftovers_removed_after() {
+    let scene = scene("cornell-box");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("b");
+    let o = out.to_str().unwrap();
+    // Slow enough to be still rendering when the others have been refused.
+    let slow = traced(&scene, o, "48", "2048");
+    let mut first = spawn(&slow);
+    let pid = format!("process {} ", first.id());
+    let start = Instant::now();
+    while !out.join("manifest.json").exists() {
+        assert!(first.try_wait().unwrap().is_none(), "the first bake ended");
+        assert!(start.elapsed() < Duration::from_secs(120), "no manifest");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    // A second full bake, a shard of the same bake, a bake with other
+    // settings, and finishing: each refused, naming the first bake.
+    for (a, needle) in [
+        (slow.clone(), "in use"),
+        (with(slow.clone(), &["--shard", "1/2"]), "in use"),
+        (traced(&scene, o, "48", "4"), "--spp 2048, not 4"),
+        (vec!["bake", "--finish", o], "in use"),
+    ] {
+        let r = run(&a);
+        let err = text(&r).1;
+        assert!(
+            !r.status.success() && err.contains(needle) && err.contains(&pid),
+            "{a:?}: {err}"
+        );
+    }
+    let status = text(&run(&["bake", "--status", o])).0;
+    assert!(
+        status.contains(&format!("running: {pid}")) && !status.contains("bake complete"),
+        "{status}"
+    );
+    assert!(
+        first.try_wait().unwrap().is_none(),
+        "the first bake ended before the others were tried"
+    );
+    first.kill().unwrap();
+    first.wait().unwrap();
+
+    // What a run killed while writing leaves: removed by the next run,
+    // which says so; nothing else is touched.
+    let leftovers = [
+        out.join("images").join(".v000-t000.exr.4242-0.partial"),
+        out.join("images")
+            .join(".v000-t000.exr.fnv1a64.4242.17.partial"),
+        out.join(".manifest.json.4242.18.partial"),
+    ];
+    for p in &leftovers {
+        std::fs::write(p, b"half").unwrap();
+    }
+    let prepared = run(&with(slow.clone(), &["--prepare"]));
+    let (said, err) = text(&prepared);
+    assert!(prepared.status.success(), "{err}");
+    assert!(
+        said.contains("removed 3 temporary files left by a stopped run"),
+        "{said}"
+    );
+    for p in &leftovers {
+        assert!(!p.exists(), "{} is still there", p.display());
+    }
+    assert!(out.join("manifest.json").exists());
+}
+
+#[test]
+fn a_resume_with_other_planning_settings_is_refused_saying_which() {
+    let scene = scene("cornell-box");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("b");
+    let o = out.to_str().unwrap();
+    let base = traced(&scene, o, "32", "1");
+    let r = run(&base);
+    assert!(r.status.success(), "{}", text(&r).1);
+    let m = Manifest::read(&out).unwrap();
+    assert_eq!(m.settings.planning.resolution, None);
+    let side = m.plan.resolution.to_string();
+    let other_side = (side.parse::<u32>().unwrap() + 16).to_string();
+    let refusals = [
+        (
+            vec!["--view-fitness", "coverage"],
+            "--view-fitness ids, not coverage",
+        ),
+        (vec!["--master-list"], "not --master-list"),
+        (
+            vec!["--resolution", &other_side],
+            &*format!("--resolution {side}, not {other_side}"),
+        ),
+    ];
+    for (extra, needle) in &refusals {
+        let r = run(&with(base.clone(), extra));
+        let err = text(&r).1;
+        assert!(
+            !r.status.success() && err.contains(needle),
+            "{extra:?}: {err}"
+        );
+    }
+    // Naming the default is the same plan.
+    let r = run(&with(base.clone(), &["--resolution", &side]));
+    assert!(r.status.success(), "{}", text(&r).1);
+
+    // A bake of the previous manifest version (no planning settings) is
+    // judged by what its plan recorded.
+    let path = out.join("manifest.json");
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    m["version"] = 2.into();
+    m["settings"].as_object_mut().unwrap().remove("planning");
+    std::fs::write(&path, serde_json::to_string(&m).unwrap()).unwrap();
+    let r = run(&with(base.clone(), &["--view-fitness", "coverage"]));
+    let err = text(&r).1;
+    assert!(
+        !r.status.success() && err.contains("--view-fitness ids, not coverage"),
+        "{err}"
+    );
+    let r = run(&base);
+    assert!(r.status.success(), "{}", text(&r).1);
+    m["version"] = 1.into();
+    std::fs::write(&path, serde_json::to_string(&m).unwrap()).unwrap();
+    let err = text(&run(&base)).1;
+    assert!(
+        err.contains("`version` is 1") && err.contains("bake it again"),
+        "{err}"
+    );
+}
+
+#[test]
+fn status_and_bake_never_call_a_bake_with_a_missing_image_complete() {
+    let scene = scene("cornell-box");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("b");
+    let o = out.to_str().unwrap();
+    let base = traced(&scene, o, "32", "1");
+    let r = run(&base);
+    assert!(r.status.success(), "{}", text(&r).1);
+    let m = Manifest::read(&out).unwrap();
+    assert!(m.complete);
+    let total = m.images.len();
+    // Image 0 is shard 0/2's: gone after the bake was completed.
+    std::fs::remove_file(out.join(&m.images[0].file)).unwrap();
+    let status = text(&run(&["bake", "--status", o])).0;
+    assert!(
+        status.contains(&format!("{} of {total} images done", total - 1))
+            && status.contains("went missing")
+            && !status.contains("bake complete"),
+        "{status}"
+    );
+    // The other shard finds its own images and says the bake is not
+    // complete.
+    let (said, err) = text(&run(&with(base.clone(), &["--shard", "1/2"])));
+    assert!(
+        said.contains("bake not complete") && !said.contains("bake complete:"),
+        "{said}{err}"
+    );
+    // Rendered again, it is complete, and says so everywhere.
+    let (said, _) = text(&run(&base));
+    assert!(
+        said.contains("1 rendered") && said.contains("bake complete:"),
+        "{said}"
+    );
+    let status = text(&run(&["bake", "--status", o])).0;
+    assert!(status.contains("bake complete"), "{status}");
+}

@@ -66,6 +66,7 @@ fn settings(size: u32, spp: u32) -> Settings {
         seed: 3,
         backend: Backend::default_available(),
         max_depth: None,
+        planning: Default::default(),
     }
 }
 

@@ -78,7 +78,7 @@ fn bisection_refines_around_a_change_only() {
     let jump = 0.3;
     let field = move |i: usize, t: f32| {
         let base = Vec3::new(1.0, 0.8, 0.5);
-        if i % 3 == 0 && t > jump {
+        if i.is_multiple_of(3) && t > jump {
             base * 4.0
         } else {
             base

@@ -23,8 +23,10 @@ use super::Settings;
 
 /// Identifies a base-image bake manifest.
 pub const FORMAT: &str = "rangewalk-base-images";
-/// Bumped whenever the layout changes; other versions are refused.
-pub const VERSION: u32 = 2;
+/// Bumped whenever the layout changes. Version 3 records the planning
+/// settings; version 2 is read too (see [`Manifest::read`]); others are
+/// refused.
+pub const VERSION: u32 = 3;
 pub const MANIFEST: &str = "manifest.json";
 /// The object-space bake (radiosity), when indirect light comes from it.
 pub const RADIOSITY: &str = "radiosity";
@@ -75,12 +77,30 @@ impl Manifest {
                 m.format
             );
         }
-        if m.version != VERSION {
-            bail!(
-                "{}: `version` is {}, this rangewalk reads version {VERSION}",
+        let mut m = m;
+        match m.version {
+            VERSION => {}
+            // Version 2 did not record the planning settings, but its plans
+            // did, as made: the id-image side, whether one master list, and
+            // the view fitness (ids, the only one there was before plans
+            // recorded it). So an older bake resumes, or is refused, as a
+            // new one would be.
+            2 => {
+                let quality = crate::radiosity::Quality::new(m.settings.quality)
+                    .with_context(|| format!("{}: `settings.quality`", path.display()))?;
+                let side = m.plan.resolution;
+                m.settings.planning = super::Planning {
+                    // As a new manifest records it: `None` for the default.
+                    resolution: (side != crate::plan::default_resolution(quality)).then_some(side),
+                    master_list: m.plan.master_list,
+                    view_fitness: m.plan.view_fitness,
+                }
+            }
+            v => bail!(
+                "{}: `version` is {v}, this rangewalk reads versions 2 and {VERSION}: \
+                 bake it again into a new directory with this rangewalk, or use the rangewalk that made it",
                 path.display(),
-                m.version
-            );
+            ),
         }
         m.check().with_context(|| format!("{}", path.display()))?;
         Ok(m)
@@ -180,6 +200,15 @@ pub fn recorded(path: &Path, expected: Option<&str>) -> Option<String> {
     }
 }
 
+/// Whether `name` is that of an atomic write's temporary file: hidden,
+/// ending in `.partial` (this module's and `image`'s writers name them
+/// `.<target>.<process>.<n>.partial`). A killed run leaves them
+/// behind; a bake removes them when it alone works on the directory.
+pub fn is_temporary(name: &std::ffi::OsStr) -> bool {
+    let name = name.to_string_lossy();
+    name.len() > ".x.partial".len() && name.starts_with('.') && name.ends_with(".partial")
+}
+
 /// Writes `bytes` to a temporary file beside `target` and renames it into
 /// place, so that no reader, and no later run after a kill, sees a partial
 /// file under the final name. The temporary name holds the process id and
@@ -245,6 +274,7 @@ mod tests {
                 seed: 0,
                 backend: crate::accel::Backend::Bvh,
                 max_depth: None,
+                planning: super::super::Planning::default(),
             },
             plan: Plan {
                 views,

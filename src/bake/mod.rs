@@ -27,7 +27,7 @@ use crate::accel::{Backend, InstancedEngine};
 use crate::camera::{Camera, Projection};
 use crate::checksum::Fnv;
 use crate::image::{self, RangeImage};
-use crate::plan::Plan;
+use crate::plan::{self, Plan, ViewFitness};
 use crate::radiosity::lookup::IrradianceCache;
 use crate::radiosity::temporal::TimeSeries;
 use crate::radiosity::{self, bake as radiosity_bake, Quality, Simplified};
@@ -36,6 +36,7 @@ use crate::render::{Progress, RenderSettings};
 use crate::scene::hash::ContentHash;
 use crate::scene::Scene;
 
+pub mod lock;
 pub mod manifest;
 pub mod size;
 pub mod slurm;
@@ -109,6 +110,37 @@ pub struct Settings {
     pub seed: u64,
     pub backend: Backend,
     pub max_depth: Option<u32>,
+    /// How the plan (views and times) is made: a resume reuses the plan it
+    /// finds, so it must have been made the way this run would make it.
+    #[serde(default)]
+    pub planning: Planning,
+}
+
+/// The planner's options besides the quality (`rangewalk bake
+/// --resolution`, `--master-list`, `--view-fitness`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Planning {
+    /// Side of the id-images; `None`: the quality's default (naming the
+    /// default resumes a bake made without naming it, see
+    /// [`Settings::resolved`]).
+    pub resolution: Option<u32>,
+    pub master_list: bool,
+    pub view_fitness: ViewFitness,
+}
+
+impl Settings {
+    /// These settings with the planner's id-image side written out: two
+    /// settings make the same bake when their resolved forms are equal.
+    pub fn resolved(&self) -> Result<Settings> {
+        let quality = Quality::new(self.quality).context("--quality")?;
+        let mut s = *self;
+        s.planning.resolution = Some(
+            self.planning
+                .resolution
+                .unwrap_or_else(|| plan::default_resolution(quality)),
+        );
+        Ok(s)
+    }
 }
 
 /// Which part of the images this run renders: every `count`-th image from
@@ -181,6 +213,8 @@ pub struct Summary {
     pub radiosity_seconds: Option<f64>,
     /// Planning: `None` where the plan came from an earlier run.
     pub plan_seconds: Option<f64>,
+    /// Temporary files that stopped runs had left, removed by this one.
+    pub removed: usize,
 }
 
 /// The image's path relative to the bake directory.
@@ -280,7 +314,35 @@ pub fn run_observed(
     observe: &mut dyn FnMut(f32) -> bool,
 ) -> Result<Summary> {
     let mut summary = Summary::default();
-    let mut manifest = start_or_resume(scene, dir, settings, engine, plan, &mut summary)?;
+    let what = if shard == Shard::ALL {
+        "baking".to_string()
+    } else {
+        format!("baking shard {}/{}", shard.index, shard.count)
+    };
+    let me = lock::Holder::me(what, shard);
+    // Registered while the manifest is checked under the bake's lock, and
+    // for as long as this run renders.
+    let (mut manifest, _running) = {
+        // Hashed outside the lock, which shards take one after another.
+        let hash = ContentHash::of(scene)?;
+        let setup = lock_bake(dir, settings, &me)?;
+        let manifest = start_or_resume(
+            scene,
+            &hash,
+            dir,
+            settings,
+            engine,
+            plan,
+            &mut summary,
+            &setup,
+        )?;
+        let alone = setup.anyone().is_none();
+        let running = setup.register(&me)?;
+        if alone {
+            summary.removed = setup.remove_temporaries()?;
+        }
+        (manifest, running)
+    };
     let quality = Quality::new(settings.quality).context("--quality")?;
     summary.total = manifest.images.len();
 
@@ -303,7 +365,7 @@ pub fn run_observed(
     if !todo.is_empty() {
         let indirect = match settings.indirect {
             IndirectSource::Radiosity => {
-                let (s, series, seconds) = radiosity_stage(scene, dir, quality, engine)?;
+                let (s, series, seconds) = radiosity_once(scene, dir, quality, engine, &me)?;
                 summary.radiosity_seconds = seconds;
                 Some((s, series))
             }
@@ -362,7 +424,8 @@ pub fn run_observed(
             );
         }
     }
-    summary.complete = manifest.complete;
+    // A bake sealed complete may have lost an image since.
+    summary.complete = manifest.complete && summary.finished == summary.total;
     Ok(summary)
 }
 
@@ -378,15 +441,67 @@ pub fn prepare(
     plan: impl FnOnce(&mut dyn InstancedEngine) -> Result<Plan>,
 ) -> Result<Summary> {
     let mut summary = Summary::default();
-    let manifest = start_or_resume(scene, dir, settings, engine, plan, &mut summary)?;
+    let me = lock::Holder::me("preparing", Shard::ALL);
+    // Held throughout: preparing is the serial part of the bake.
+    let hash = ContentHash::of(scene)?;
+    let setup = lock_bake(dir, settings, &me)?;
+    let manifest = start_or_resume(
+        scene,
+        &hash,
+        dir,
+        settings,
+        engine,
+        plan,
+        &mut summary,
+        &setup,
+    )?;
+    if setup.anyone().is_none() {
+        summary.removed = setup.remove_temporaries()?;
+    }
     if settings.indirect == IndirectSource::Radiosity {
         let quality = Quality::new(settings.quality).context("--quality")?;
         summary.radiosity_seconds = radiosity_stage(scene, dir, quality, engine)?.2;
     }
     summary.total = manifest.images.len();
     summary.finished = status::done(dir, &manifest);
-    summary.complete = manifest.complete;
+    summary.complete = manifest.complete && summary.finished == summary.total;
     Ok(summary)
+}
+
+/// Takes the bake's lock (see [`lock`]) for its serial steps, first
+/// refusing settings that cannot make a bake and a directory that holds
+/// something else: no lock file is left for nothing, or in someone else's
+/// folder.
+fn lock_bake(dir: &Path, settings: &Settings, me: &lock::Holder) -> Result<lock::Setup> {
+    ensure!(settings.spp > 0, "--spp must be at least 1");
+    ensure!(settings.size > 0, "--size must be at least 1");
+    settings.resolved()?;
+    if !dir.join(manifest::MANIFEST).exists() {
+        check_fresh(dir)?;
+    }
+    lock::Setup::acquire(dir, me)
+}
+
+/// [`radiosity_stage`], solved by one run only: runs that start together
+/// (shards, or a bake and its `--prepare`) would otherwise each solve it
+/// and write it into the same temporary folder.
+fn radiosity_once(
+    scene: &Scene,
+    dir: &Path,
+    quality: Quality,
+    engine: &mut dyn InstancedEngine,
+    me: &lock::Holder,
+) -> Result<(Simplified, TimeSeries, Option<f64>)> {
+    let solved = || {
+        dir.join(manifest::RADIOSITY)
+            .join(radiosity_bake::MANIFEST)
+            .exists()
+    };
+    if solved() {
+        return radiosity_stage(scene, dir, quality, engine);
+    }
+    let _setup = lock::Setup::acquire(dir, me)?;
+    radiosity_stage(scene, dir, quality, engine)
 }
 
 /// Refuses to go on with the bake in `dir` when it was made from another
@@ -405,10 +520,19 @@ pub fn check_resumable(scene: &Scene, dir: &Path, settings: &Settings) -> Result
 }
 
 /// Refuses a directory without a bake that holds anything but the job
-/// scripts of a distributed bake: it is someone else's.
+/// scripts of a distributed bake and what a bake stopped before its
+/// manifest leaves (its lock, temporary files): it is someone else's.
 fn check_fresh(dir: &Path) -> Result<()> {
+    let ours = |name: &std::ffi::OsStr| {
+        name == SLURM_DIR
+            || name == lock::LOCK
+            || name == lock::RUNNING
+            || manifest::is_temporary(name)
+            // `image::check_output_dir`'s probe of a run starting beside.
+            || name.to_string_lossy().starts_with(".rangewalk-probe-")
+    };
     let foreign = match dir.read_dir() {
-        Ok(mut entries) => entries.any(|e| e.map_or(true, |e| e.file_name() != SLURM_DIR)),
+        Ok(mut entries) => entries.any(|e| e.map_or(true, |e| !ours(&e.file_name()))),
         Err(_) => false,
     };
     if foreign {
@@ -422,22 +546,28 @@ fn check_fresh(dir: &Path) -> Result<()> {
 }
 
 /// The bake's manifest: read and checked against this scene and these
-/// settings, or, when starting, planned (with `plan`) and written.
+/// settings, or, when starting, planned (with `plan`) and written; under
+/// the bake's lock (`_setup`), so that runs started together make one.
+#[allow(clippy::too_many_arguments)]
 fn start_or_resume(
     scene: &Scene,
+    hash: &ContentHash,
     dir: &Path,
     settings: &Settings,
     engine: &mut dyn InstancedEngine,
     plan: impl FnOnce(&mut dyn InstancedEngine) -> Result<Plan>,
     summary: &mut Summary,
+    setup: &lock::Setup,
 ) -> Result<Manifest> {
-    ensure!(settings.spp > 0, "--spp must be at least 1");
-    ensure!(settings.size > 0, "--size must be at least 1");
-    Quality::new(settings.quality).context("--quality")?;
-    let hash = ContentHash::of(scene)?;
     let manifest = if dir.join(manifest::MANIFEST).exists() {
         let m = Manifest::read(dir)?;
-        check_fits(&m, dir, &hash, settings)?;
+        if let Err(e) = check_fits(&m, dir, hash, settings) {
+            // Name who is baking it now, if anyone: the likely author.
+            return Err(match setup.anyone() {
+                Some(h) => anyhow::anyhow!("{e:#}; it is being baked now by {h}"),
+                None => e,
+            });
+        }
         m
     } else {
         check_fresh(dir)?;
@@ -453,7 +583,7 @@ fn start_or_resume(
             format: manifest::FORMAT.into(),
             version: manifest::VERSION,
             scene: std::fs::canonicalize(&scene.source).unwrap_or_else(|_| scene.source.clone()),
-            scene_hash: hash,
+            scene_hash: hash.clone(),
             settings: *settings,
             images: image_entries(&plan),
             plan,
@@ -479,11 +609,12 @@ fn check_fits(m: &Manifest, dir: &Path, hash: &ContentHash, settings: &Settings)
             changes.join(", ")
         );
     }
-    if m.settings != *settings {
+    let (was, now) = (m.settings.resolved()?, settings.resolved()?);
+    if was != now {
         bail!(
             "{} was baked with other settings ({}); use them to resume it, or another directory",
             dir.display(),
-            describe_difference(&m.settings, settings)
+            describe_difference(&was, &now)
         );
     }
     Ok(())
@@ -516,6 +647,24 @@ fn describe_difference(was: &Settings, now: &Settings) -> String {
         format!("{:?}", was.max_depth),
         format!("{:?}", now.max_depth),
     );
+    let (a, b) = (&was.planning, &now.planning);
+    let side = |r: Option<u32>| r.map_or("default".into(), |r| r.to_string());
+    diff("resolution", side(a.resolution), side(b.resolution));
+    diff(
+        "view-fitness",
+        a.view_fitness.to_string(),
+        b.view_fitness.to_string(),
+    );
+    if a.master_list != b.master_list {
+        out.push(
+            if a.master_list {
+                "--master-list (one time list for every view), not a list per view"
+            } else {
+                "a time list per view, not --master-list"
+            }
+            .into(),
+        );
+    }
     out.join(", ")
 }
 

@@ -8,8 +8,9 @@ use std::path::Path;
 use anyhow::{bail, Result};
 use rayon::prelude::*;
 
+use super::lock::{self, Holder};
 use super::manifest::{self, Manifest, RADIOSITY};
-use super::IndirectSource;
+use super::{IndirectSource, Shard};
 use crate::radiosity::bake as radiosity_bake;
 
 /// What a bake directory holds now.
@@ -19,12 +20,20 @@ pub struct Status {
     pub total: usize,
     /// Images written with their checksum recorded (not read back).
     pub done: usize,
+    /// Whether the manifest marks the bake complete (every image was read
+    /// back against its checksum once).
+    pub sealed: bool,
+    /// Sealed, and no image has gone missing since: what readers need.
     pub complete: bool,
     /// Whether the radiosity stage is solved; `None` where the images
     /// trace indirect light and need none.
     pub radiosity: Option<bool>,
     /// Files of the images not done yet, in manifest order.
     pub missing: Vec<String>,
+    /// The runs working on the bake now (rendering, finishing).
+    pub running: Vec<Holder>,
+    /// Temporary files of stopped runs removed (by `finish`).
+    pub removed: usize,
 }
 
 /// Counts the done images of the bake in `dir` from what is on disk,
@@ -47,9 +56,12 @@ pub fn status(dir: &Path) -> Result<Status> {
     Ok(Status {
         total: m.images.len(),
         done: m.images.len() - missing.len(),
-        complete: m.complete,
+        sealed: m.complete,
+        complete: m.complete && missing.is_empty(),
         radiosity: radiosity_solved(dir, &m),
         missing,
+        running: lock::running(dir),
+        removed: 0,
     })
 }
 
@@ -57,16 +69,33 @@ pub fn status(dir: &Path) -> Result<Status> {
 /// checksum and, when none is missing or damaged, records the checksums in
 /// the manifest and marks the bake complete. Returns the status after it;
 /// its `missing` lists the images missing or damaged.
+///
+/// Refused while a run renders any image: its images are not all there,
+/// and reading them all is the long part. Registered as working on every
+/// image meanwhile, so no run starts rendering under it; alone, it removes
+/// what stopped runs left (the last job of a Slurm bake runs after every
+/// task, killed ones included).
 pub fn finish(dir: &Path) -> Result<Status> {
-    let mut m = Manifest::read(dir)?;
+    Manifest::read(dir)?;
+    let me = Holder::me("finishing", Shard::ALL);
+    let (mut m, removed, _running) = {
+        let setup = lock::Setup::acquire(dir, &me)?;
+        let m = Manifest::read(dir)?;
+        // Working on every image, it is alone once registered.
+        let running = setup.register(&me)?;
+        (m, setup.remove_temporaries()?, running)
+    };
     let unchecked = vec![false; m.images.len()];
     let bad = seal(dir, &mut m, &unchecked)?;
     Ok(Status {
         total: m.images.len(),
         done: m.images.len() - bad.len(),
+        sealed: m.complete,
         complete: m.complete && bad.is_empty(),
         radiosity: radiosity_solved(dir, &m),
         missing: bad,
+        running: Vec::new(),
+        removed,
     })
 }
 

@@ -10,7 +10,7 @@ use super::scene::rw_scene;
 use super::status::rw_status;
 use crate::accel::{self, Backend};
 use crate::bake::{self, Bake, BaseProjection, IndirectSource, Shard};
-use crate::plan::{self, PlanOptions, ViewFitness};
+use crate::plan::{self, PlanOptions};
 use crate::radiosity::{Quality, DEFAULT_QUALITY};
 use crate::scene::Scene;
 use crate::synth::{self, Kept};
@@ -151,6 +151,7 @@ fn settings(scene: &Scene, o: &rw_bake_options) -> Result<(bake::Settings, Shard
         seed: o.seed,
         backend: Backend::default_available(),
         max_depth: (o.max_depth != 0).then_some(o.max_depth),
+        planning: bake::Planning::default(),
     };
     Ok((settings, shard))
 }
@@ -169,8 +170,9 @@ pub type rw_progress_fn =
 /// `dir` (which must have been started with the same scene and options).
 /// `progress` may be NULL. Returns `RW_OK` when this run's images are done
 /// (with shards, the bake is complete when every shard's are).
-/// Thread-safe for different directories; one directory takes one bake at
-/// a time.
+/// Thread-safe. One directory takes one bake at a time (shards of one bake
+/// together): a second run on images a running one renders, in this or
+/// another process, returns `RW_BAKE` naming the holder's process.
 ///
 /// # Safety
 /// `scene` is NULL or a live scene; `options` NULL or readable for its
@@ -201,9 +203,9 @@ pub unsafe extern "C" fn rw_bake_run(
         .map_err(failed)?;
         let plan_options = PlanOptions {
             quality: Quality::new(settings.quality).map_err(failed)?,
-            resolution: None,
-            master_list: false,
-            view_fitness: ViewFitness::Ids,
+            resolution: settings.planning.resolution,
+            master_list: settings.planning.master_list,
+            view_fitness: settings.planning.view_fitness,
         };
         let mut observe = |fraction: f32| match progress {
             // SAFETY: the caller gives a function that takes `userdata`.

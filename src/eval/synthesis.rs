@@ -182,6 +182,10 @@ impl CommonArgs {
             seed: BAKE_SEED,
             backend: self.backend,
             max_depth: None,
+            planning: bake::Planning {
+                view_fitness: self.view_fitness,
+                ..Default::default()
+            },
         }
     }
 }

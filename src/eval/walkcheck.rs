@@ -46,7 +46,7 @@ impl ReferenceChecks {
 
 impl FrameChecker for ReferenceChecks {
     fn wants(&self, i: usize, n: usize) -> bool {
-        i % self.every == 0 || i + 1 == n
+        i.is_multiple_of(self.every) || i + 1 == n
     }
 
     fn check(

@@ -960,6 +960,7 @@ mod tests {
             seed: 1,
             backend: Backend::default_available(),
             max_depth: Some(1),
+            planning: Default::default(),
         };
         let dir = tempfile::tempdir().unwrap();
         let mut engine = accel::build(settings.backend, &scene.geometry(), &scene.at(0.0)).unwrap();

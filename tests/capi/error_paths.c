@@ -69,6 +69,77 @@ static void *fail_in_another_thread(void *arg) {
     return NULL;
 }
 
+/* Concurrent bakes of one directory: a second run of the images a running
+ * bake renders (here from another thread: the lock is per open file, so it
+ * keeps threads apart as it does processes) gets RW_BAKE naming the holder;
+ * one with other settings is refused naming it too; the first bake ends
+ * untouched. */
+typedef struct {
+    pthread_mutex_t mutex;
+    pthread_cond_t cond;
+    int paused, go;
+    rw_scene *scene;
+    rw_bake_options options;
+    char dir[1024];
+    rw_status status;
+} held_bake;
+
+static void held_bake_signal(held_bake *h, int *flag) {
+    pthread_mutex_lock(&h->mutex);
+    *flag = 1;
+    pthread_cond_broadcast(&h->cond);
+    pthread_mutex_unlock(&h->mutex);
+}
+
+static void held_bake_wait(held_bake *h, const int *flag) {
+    pthread_mutex_lock(&h->mutex);
+    while (!*flag) pthread_cond_wait(&h->cond, &h->mutex);
+    pthread_mutex_unlock(&h->mutex);
+}
+
+/* Holds the bake at its first report (planned, registered, no image yet)
+ * until told to go on. */
+static bool hold_at_start(void *userdata, float fraction) {
+    held_bake *h = userdata;
+    if (fraction == 0.0f) {
+        held_bake_signal(h, &h->paused);
+        held_bake_wait(h, &h->go);
+    }
+    return true;
+}
+
+static void *run_held_bake(void *arg) {
+    held_bake *h = arg;
+    h->status = rw_bake_run(h->scene, &h->options, h->dir, hold_at_start, h);
+    held_bake_signal(h, &h->paused); /* a bake that failed early holds no one up */
+    return NULL;
+}
+
+static void concurrent_bakes(rw_scene *scene, const rw_bake_options *tiny, const char *work) {
+    held_bake h = {.scene = scene, .options = *tiny};
+    pthread_mutex_init(&h.mutex, NULL);
+    pthread_cond_init(&h.cond, NULL);
+    snprintf(h.dir, sizeof h.dir, "%s/concurrent", work);
+    pthread_t first;
+    pthread_create(&first, NULL, run_held_bake, &h);
+    held_bake_wait(&h, &h.paused);
+    EXPECT(rw_bake_run(scene, tiny, h.dir, NULL, NULL), RW_BAKE, "in use");
+    CHECK(strstr(last_error(), "(this process)") != NULL);
+    rw_bake_options other = *tiny;
+    other.spp = tiny->spp + 1;
+    EXPECT(rw_bake_run(scene, &other, h.dir, NULL, NULL), RW_BAKE, "other settings");
+    CHECK(strstr(last_error(), "being baked now by process") != NULL);
+    held_bake_signal(&h, &h.go);
+    pthread_join(first, NULL);
+    CHECK(h.status == RW_OK);
+    rw_bake *bake = NULL;
+    EXPECT(rw_bake_open(h.dir, &bake), RW_OK, NULL);
+    rw_bake_free(bake);
+    pthread_cond_destroy(&h.cond);
+    pthread_mutex_destroy(&h.mutex);
+}
+/* End of concurrent bakes. */
+
 int main(int argc, char **argv) {
     if (argc != 5) {
         fprintf(stderr, "usage: %s <cornell scene> <other scene> <cornell bake> <work dir>\n", argv[0]);
@@ -209,6 +280,7 @@ int main(int argc, char **argv) {
     EXPECT(rw_bake_run(scene, &tiny, cancelled, NULL, NULL), RW_OK, NULL);
     EXPECT(rw_bake_open(cancelled, &bake), RW_OK, NULL);
     rw_bake_free(bake);
+    concurrent_bakes(scene, &tiny, work);
 
     /* Synthesis. */
     EXPECT(rw_bake_open_with_scene(scene, bake_dir, &bake), RW_OK, NULL);

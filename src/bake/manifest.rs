@@ -163,7 +163,7 @@ impl Manifest {
     /// Writes the manifest atomically (a reader sees the old or the new one).
     pub fn write(&self, dir: &Path) -> Result<()> {
         let text = serde_json::to_string_pretty(self).context("encoding the bake manifest")?;
-        write_atomically(&dir.join(MANIFEST), text.as_bytes())
+        crate::output::write_file(&dir.join(MANIFEST), text)
     }
 }
 
@@ -200,35 +200,12 @@ pub fn recorded(path: &Path, expected: Option<&str>) -> Option<String> {
     }
 }
 
-/// Whether `name` is that of an atomic write's temporary file: hidden,
-/// ending in `.partial` (this module's and `image`'s writers name them
-/// `.<target>.<process>.<n>.partial`). A killed run leaves them
-/// behind; a bake removes them when it alone works on the directory.
+/// Whether `name` is that of a temporary file of `output`'s writers. A
+/// killed run leaves them behind; a bake removes them when it alone works
+/// on the directory.
 pub fn is_temporary(name: &std::ffi::OsStr) -> bool {
-    let name = name.to_string_lossy();
-    name.len() > ".x.partial".len() && name.starts_with('.') && name.ends_with(".partial")
-}
-
-/// Writes `bytes` to a temporary file beside `target` and renames it into
-/// place, so that no reader, and no later run after a kill, sees a partial
-/// file under the final name. The temporary name holds the process id and
-/// the time, so that shards on different nodes of a shared filesystem
-/// (where process ids repeat) never write into one temporary file.
-pub fn write_atomically(target: &Path, bytes: &[u8]) -> Result<()> {
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos());
-    let mut name = std::ffi::OsString::from(".");
-    name.push(target.file_name().unwrap_or_default());
-    name.push(format!(".{}.{nanos}.partial", std::process::id()));
-    let tmp = target.with_file_name(name);
-    let result = fs::write(&tmp, bytes)
-        .and_then(|()| fs::rename(&tmp, target))
-        .with_context(|| format!("writing {}", target.display()));
-    if result.is_err() {
-        let _ = fs::remove_file(&tmp);
-    }
-    result
+    name.to_str()
+        .is_some_and(|n| crate::output::temporary_for(n).is_some())
 }
 
 #[cfg(test)]

@@ -746,7 +746,7 @@ fn render_image(
             (DIFFUSE_DIRECT, &out.diffuse_direct),
         ],
     )?;
-    manifest::write_atomically(
+    crate::output::write_file(
         &manifest::checksum_path(&path),
         manifest::hex(sum).as_bytes(),
     )?;

@@ -18,7 +18,6 @@ use std::process::Command;
 
 use anyhow::{bail, ensure, Context, Result};
 
-use super::manifest::write_atomically;
 use super::{Shard, SLURM_DIR};
 
 pub const PREPARE: &str = "1-prepare.sbatch";
@@ -163,7 +162,7 @@ pub fn write_scripts(
         ),
     ];
     for (path, text) in texts {
-        write_atomically(path, text.as_bytes())?;
+        crate::output::write_file(path, text)?;
     }
     Ok(scripts)
 }

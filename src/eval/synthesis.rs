@@ -342,7 +342,7 @@ pub fn bake_cached(
         rays: summary.rays,
     };
     let json = serde_json::to_string_pretty(&timing).context("encoding bake times")?;
-    bake::manifest::write_atomically(&timing_path, json.as_bytes())?;
+    crate::output::write_file(&timing_path, json)?;
     Ok(BakeRun {
         bake: Bake::open(dir, scene)?,
         timing: Some(timing),

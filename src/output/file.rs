@@ -58,13 +58,22 @@ fn temporary(target: &Path) -> Result<PathBuf> {
 
 /// The file name a temporary left by [`write_with`] was for, if `name` is
 /// one (`.frame-0001.exr.812.1733568000000000000.partial` was for
-/// `frame-0001.exr`).
+/// `frame-0001.exr`). Earlier versions named them
+/// `.<target>.<pid>-<count>.partial`; those are recognised too, so that a
+/// run killed before an upgrade is cleaned up after it.
 pub fn temporary_for(name: &str) -> Option<&str> {
-    let inner = name.strip_prefix('.')?.strip_suffix(SUFFIX)?;
-    let (rest, stamp) = inner.rsplit_once('.')?;
-    let (target, pid) = rest.rsplit_once('.')?;
     let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
-    (digits(stamp) && digits(pid) && !target.is_empty()).then_some(target)
+    let inner = name.strip_prefix('.')?.strip_suffix(SUFFIX)?;
+    let (rest, last) = inner.rsplit_once('.')?;
+    let target = match last.split_once('-') {
+        Some((pid, count)) if digits(pid) && digits(count) => rest,
+        _ if digits(last) => {
+            let (target, pid) = rest.rsplit_once('.')?;
+            digits(pid).then_some(target)?
+        }
+        _ => return None,
+    };
+    (!target.is_empty()).then_some(target)
 }
 
 #[cfg(test)]
@@ -78,6 +87,10 @@ mod tests {
         let tmp = temporary(&target).unwrap();
         let name = tmp.file_name().unwrap().to_str().unwrap();
         assert_eq!(temporary_for(name), Some("frame-0001.exr"));
+        assert_eq!(
+            temporary_for(".v000-t000.exr.4242-0.partial"),
+            Some("v000-t000.exr")
+        );
         assert_ne!(
             tmp,
             temporary(&target).unwrap(),
@@ -88,7 +101,9 @@ mod tests {
             "frame.partial",
             ".frame.partial",
             ".frame.exr.x.1.partial",
+            ".frame.exr.1-x.partial",
             "..1.2.partial",
+            "..1-2.partial",
         ] {
             assert_eq!(temporary_for(not), None, "{not}");
         }

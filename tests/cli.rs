@@ -388,3 +388,79 @@ fn experiments_refuse_subpixels_out_of_range_before_any_work() {
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().flatten().collect();
     assert!(left.is_empty(), "{left:?}");
 }
+
+// Messages that say what is wrong and what to do (issue 49).
+
+/// A tmpfs of `size` mounted on a fresh folder, unmounted when dropped.
+/// Mounting needs root, as these tests run here and in CI: a machine that
+/// cannot mount fails the test rather than skips it.
+struct TinyDisk {
+    dir: tempfile::TempDir,
+}
+
+impl TinyDisk {
+    fn new(size: &str) -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let o = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs"])
+            .arg(dir.path())
+            .output()
+            .expect("run mount");
+        assert!(
+            o.status.success(),
+            "cannot mount a tmpfs (the test needs root): {}",
+            stderr(&o)
+        );
+        Self { dir }
+    }
+
+    fn path(&self, name: &str) -> String {
+        self.dir.path().join(name).to_string_lossy().into_owned()
+    }
+
+    /// Fills the disk to the last byte.
+    fn fill(&self) {
+        let filler = vec![0u8; 1 << 20];
+        assert!(std::fs::write(self.path("filler"), filler).is_err());
+    }
+}
+
+impl Drop for TinyDisk {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(self.dir.path()).status();
+    }
+}
+
+/// Every image format, written to a full disk, says the disk is full and
+/// names the file, and leaves nothing under its name.
+#[test]
+fn a_full_disk_is_named_as_such() {
+    let cb = scene("cornell-box");
+    let disk = TinyDisk::new("16k");
+    // A 64x64 range image is about 64 KiB.
+    let big = disk.path("big.exr");
+    let args = with(&cb, &big, &[("--spp", "1"), ("--size", "64x64")]);
+    fails_with(&args, "no space left on the device (the disk is full)");
+    fails_with(&args, "big.exr");
+    assert!(!Path::new(&big).exists());
+    disk.fill();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.exr");
+    let out = out.to_str().unwrap();
+    for (flag, name) in [
+        ("--out", "x.exr"),
+        ("--preview", "p.png"),
+        ("--hdr", "p.hdr"),
+    ] {
+        let file = disk.path(name);
+        let args = with(&cb, out, &[("--spp", "1"), (flag, &file)]);
+        let o = rangewalk(&args);
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{flag}: {err}");
+        assert!(
+            err.contains("the disk is full") && err.contains(name),
+            "{flag}: {err}"
+        );
+        assert!(!Path::new(&file).exists(), "{flag}");
+    }
+}

@@ -35,6 +35,7 @@ mod planes;
 pub mod png_io;
 pub mod rgbe;
 mod texture;
+mod write_error;
 
 pub use color::tonemap_srgb8;
 pub use output::{check_output, check_output_dir, OutputKind};

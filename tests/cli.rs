@@ -464,3 +464,127 @@ fn a_full_disk_is_named_as_such() {
         assert!(!Path::new(&file).exists(), "{flag}");
     }
 }
+
+/// A folder holding `scene.toml` (the given text) and `quad.obj`, a unit
+/// square facing -z.
+fn small_scene(toml: &str) -> (tempfile::TempDir, String) {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("quad.obj"),
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n",
+    )
+    .unwrap();
+    let path = dir.path().join("scene.toml");
+    std::fs::write(&path, toml).unwrap();
+    (dir, path.to_string_lossy().into_owned())
+}
+
+const SMALL: &str = r#"
+[[materials]]
+name = "grey"
+type = "diffuse"
+reflectance = [0.5, 0.5, 0.5]
+
+[[objects]]
+name = "quad"
+mesh = "quad.obj"
+material = "grey"
+
+[[cameras]]
+name = "main"
+position = [0.5, 0.5, -2]
+look_at = [0.5, 0.5, 0]
+vfov = 40
+"#;
+
+/// Runs `args`, which must fail within 10 s (a FIFO opened for reading
+/// would block forever) with every needle in the message.
+fn fails_promptly_with(args: &[&str], needles: &[&str]) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rangewalk"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run rangewalk");
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed().as_secs() >= 10 {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            panic!("{args:?} still runs after 10 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let o = child.wait_with_output().unwrap();
+    assert!(!o.status.success(), "{args:?} succeeded");
+    let err = stderr(&o);
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: `{n}` not in {err}");
+    }
+}
+
+fn mkfifo(path: &Path) {
+    let o = Command::new("mkfifo").arg(path).output().expect("run mkfifo");
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// A mesh, texture or scene file that is a folder, a FIFO or a symlink
+/// loop is called what it is, naming the scene file and field, and a FIFO
+/// is never opened (that would block).
+#[test]
+fn input_files_that_are_not_files_are_called_what_they_are() {
+    let kinds: [(fn(&Path), &str); 3] = [
+        (|p| std::fs::create_dir(p).unwrap(), "is a folder"),
+        (mkfifo, "is a FIFO (named pipe), not a regular file"),
+        (
+            |p| std::os::unix::fs::symlink(p.file_name().unwrap(), p).unwrap(),
+            "is a symlink loop",
+        ),
+    ];
+    for (make, words) in kinds {
+        // As a mesh.
+        let (dir, scene) = small_scene(&SMALL.replace("quad.obj", "odd.obj"));
+        make(&dir.path().join("odd.obj"));
+        fails_promptly_with(
+            &["info", &scene],
+            &[words, "scene.toml:", "object `quad`", "`mesh`", "odd.obj"],
+        );
+        // As a texture.
+        let textured = SMALL.replace(
+            "reflectance = [0.5, 0.5, 0.5]",
+            "reflectance = [0.5, 0.5, 0.5]\ntexture = \"odd.png\"",
+        );
+        let (dir, scene) = small_scene(&textured);
+        make(&dir.path().join("odd.png"));
+        fails_promptly_with(
+            &["info", &scene],
+            &[words, "scene.toml:", "material `grey`", "`texture`", "odd.png"],
+        );
+        // As the scene file.
+        let dir = tempfile::tempdir().unwrap();
+        let scene = dir.path().join("scene.toml");
+        make(&scene);
+        fails_promptly_with(&["info", scene.to_str().unwrap()], &[words, "scene.toml"]);
+    }
+}
+
+/// An object without a triangle is refused, naming it and its mesh, even
+/// beside objects that have triangles.
+#[test]
+fn an_object_without_triangles_is_refused() {
+    let two = format!(
+        "{SMALL}\n[[objects]]\nname = \"ghost\"\nmesh = \"points.obj\"\nmaterial = \"grey\"\n"
+    );
+    let (dir, scene) = small_scene(&two);
+    std::fs::write(dir.path().join("points.obj"), "v 0 0 0\nv 1 0 0\np 1 2\n").unwrap();
+    fails_with(&["info", &scene], "object `ghost` has no triangles");
+    fails_with(&["info", &scene], "points.obj has no faces");
+    // Faces that all have zero area.
+    std::fs::write(
+        dir.path().join("points.obj"),
+        "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    fails_with(&["info", &scene], "the 1 triangle(s) of");
+    fails_with(&["info", &scene], "all have zero area");
+}

@@ -184,6 +184,9 @@ impl Source<'_> {
 }
 
 pub fn load(path: PathBuf) -> Result<Scene> {
+    if let Some(why) = not_a_file(&path) {
+        bail!("scene file {} {why}", path.display());
+    }
     let text = std::fs::read_to_string(&path)
         .with_context(|| format!("cannot read scene file {}", path.display()))?;
     let parsed: SceneToml = toml::from_str(&text)
@@ -251,12 +254,39 @@ pub fn load(path: PathBuf) -> Result<Scene> {
         )?;
         let mesh_path = dir.join(&o.mesh);
         if !obj_files.contains_key(&mesh_path) {
+            if let Some(why) = not_a_file(&mesh_path) {
+                bail!(
+                    "{at}: object `{}`: `mesh` {} {why}",
+                    o.name,
+                    mesh_path.display()
+                );
+            }
             obj_files.insert(mesh_path.clone(), ObjFile::read(&mesh_path, &mut warnings)?);
         }
         let obj = &obj_files[&mesh_path];
         let (mesh, mtl_name, dropped) = obj
             .mesh(o.group.as_deref())
             .with_context(|| format!("{at}: object `{}`", o.name))?;
+        // An object without a triangle is never seen, lit or hit: it can
+        // only be a mistake (a wrong group, a model exported at a scale
+        // that rounds it flat, a file of points or lines), and a warning
+        // would let a scene render with something silently missing.
+        if mesh.triangles.is_empty() {
+            let part = match &o.group {
+                Some(g) => format!("group `{g}` of {}", mesh_path.display()),
+                None => mesh_path.display().to_string(),
+            };
+            if dropped > 0 {
+                bail!(
+                    "{at}: object `{}` has no triangles: the {dropped} triangle(s) of {part} all have zero area; fix the mesh or remove the object",
+                    o.name
+                );
+            }
+            bail!(
+                "{at}: object `{}` has no triangles: {part} has no faces (points and lines are not drawn); fix `mesh` or `group`, or remove the object",
+                o.name
+            );
+        }
         dropped_triangles += dropped;
         let material = resolve_material(
             &at,
@@ -275,8 +305,8 @@ pub fn load(path: PathBuf) -> Result<Scene> {
         });
     }
     ensure!(
-        objects.iter().any(|o| !o.mesh.triangles.is_empty()),
-        "{}: the scene is empty (no object with a triangle of non-zero area)",
+        !objects.is_empty(),
+        "{}: the scene is empty: add an [[objects]] table with a mesh",
         path.display()
     );
 
@@ -372,6 +402,55 @@ fn unique<'a>(
     Ok(())
 }
 
+/// What keeps `path` from being read as a file, found without opening it:
+/// opening a FIFO blocks until something writes to it, which may be never,
+/// and "does not exist" would send the user looking for a file that is
+/// there but is a folder or a link to itself.
+fn not_a_file(path: &Path) -> Option<String> {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => None,
+        Ok(m) if m.is_dir() => Some("is a folder, not a file".into()),
+        Ok(m) => Some(format!(
+            "is {}, not a regular file",
+            special_kind(&m.file_type())
+        )),
+        Err(e) if e.raw_os_error() == Some(ELOOP) => Some(
+            "is a symlink loop (following its links leads back to itself); point it at a file"
+                .into(),
+        ),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => match std::fs::read_link(path) {
+            Ok(target) => Some(format!(
+                "is a symlink to {}, which does not exist",
+                target.display()
+            )),
+            Err(_) => Some("does not exist".into()),
+        },
+        Err(e) => Some(format!("cannot be read: {e}")),
+    }
+}
+
+/// The OS error of following too many symbolic links.
+const ELOOP: i32 = if cfg!(target_os = "linux") { 40 } else { 62 };
+
+#[cfg(unix)]
+fn special_kind(t: &std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if t.is_fifo() {
+        "a FIFO (named pipe)"
+    } else if t.is_socket() {
+        "a socket"
+    } else if t.is_block_device() || t.is_char_device() {
+        "a device"
+    } else {
+        "something else"
+    }
+}
+
+#[cfg(not(unix))]
+fn special_kind(_: &std::fs::FileType) -> &'static str {
+    "something else"
+}
+
 fn finite(what: &str, field: &str, values: &[f32]) -> Result<()> {
     ensure!(
         values.iter().all(|v| v.is_finite()),
@@ -419,7 +498,7 @@ fn build_material(at: &str, m: &MaterialToml, dir: &Path) -> Result<Material> {
             let reflectance = reflectance(&what, "reflectance", *r)?;
             let texture = texture
                 .as_ref()
-                .map(|t| read_texture(&what, &dir.join(t)))
+                .map(|t| read_texture(&what, "texture", &dir.join(t)))
                 .transpose()?;
             if let Some(t) = &texture {
                 let product = reflectance * t.largest_texel();
@@ -499,8 +578,11 @@ fn build_material(at: &str, m: &MaterialToml, dir: &Path) -> Result<Material> {
 /// A texture multiplies a reflectance, so its texels only need to be
 /// finite and not negative here; the product is checked where the
 /// reflectance is known.
-fn read_texture(what: &str, path: &Path) -> Result<Arc<Texture>> {
-    let tex = crate::image::read_texture(path).with_context(|| format!("{what}: texture"))?;
+fn read_texture(what: &str, field: &str, path: &Path) -> Result<Arc<Texture>> {
+    if let Some(why) = not_a_file(path) {
+        bail!("{what}: `{field}` {} {why}", path.display());
+    }
+    let tex = crate::image::read_texture(path).with_context(|| format!("{what}: `{field}`"))?;
     ensure!(
         tex.texels
             .iter()
@@ -587,14 +669,15 @@ fn resolve_material(
     let texture = match &mtl.diffuse_texture {
         Some(t) => {
             let path = obj.path.parent().unwrap_or(Path::new(".")).join(t);
-            if path.is_file() {
-                Some(read_texture(&what, &path)?)
-            } else {
-                warnings.push(format!(
-                    "{what}: texture {} does not exist: using `Kd` alone",
-                    path.display()
-                ));
-                None
+            match not_a_file(&path) {
+                None => Some(read_texture(&what, "map_Kd", &path)?),
+                Some(why) => {
+                    warnings.push(format!(
+                        "{what}: `map_Kd` texture {} {why}: using `Kd` alone",
+                        path.display()
+                    ));
+                    None
+                }
             }
         }
         None => None,
@@ -826,12 +909,8 @@ struct ObjFile {
 impl ObjFile {
     /// A missing MTL file is a warning (the objects fall back to the
     /// default material); one that does not parse is an error naming it.
+    /// The caller has checked that `path` is a regular file.
     fn read(path: &Path, warnings: &mut Vec<String>) -> Result<Self> {
-        ensure!(
-            path.is_file(),
-            "mesh file {} does not exist",
-            path.display()
-        );
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read mesh {}", path.display()))?;
         check_obj(path, &text)?;
@@ -847,13 +926,20 @@ impl ObjFile {
         let mtl_files = std::cell::RefCell::new(HashMap::new());
         let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &opts, |name| {
             let mtl = dir.join(name);
-            let Ok(text) = std::fs::read_to_string(&mtl) else {
-                mtl_warnings.borrow_mut().push(format!(
-                    "{}: MTL file {} cannot be read: its materials fall back to the default",
-                    path.display(),
-                    mtl.display()
-                ));
-                return Ok(Default::default());
+            let read = match not_a_file(&mtl) {
+                Some(why) => Err(why),
+                None => std::fs::read_to_string(&mtl).map_err(|e| format!("cannot be read: {e}")),
+            };
+            let text = match read {
+                Ok(text) => text,
+                Err(why) => {
+                    mtl_warnings.borrow_mut().push(format!(
+                        "{}: MTL file {} {why}: its materials fall back to the default",
+                        path.display(),
+                        mtl.display()
+                    ));
+                    return Ok(Default::default());
+                }
             };
             let (text, w) = match prepare_mtl(&mtl, &text) {
                 Ok(prepared) => prepared,
@@ -1054,7 +1140,11 @@ vfov = 40
                 "mesh = \"missing.obj\"",
                 &["missing.obj", "does not exist"],
             ),
-            ("group = \"quad\"", "group = \"sliver\"", &["empty"]),
+            (
+                "group = \"quad\"",
+                "group = \"sliver\"",
+                &["object `quad` has no triangles", "sliver", "zero area"],
+            ),
             ("group = \"quad\"", "group = \"cube\"", &["cube", "quad"]),
             ("vfov = 40", "vfov = 400", &["vfov", "main"]),
             ("fps = 30", "fps = 30\nspeed = 2", &["speed"]),

@@ -524,7 +524,10 @@ fn fails_promptly_with(args: &[&str], needles: &[&str]) {
 }
 
 fn mkfifo(path: &Path) {
-    let o = Command::new("mkfifo").arg(path).output().expect("run mkfifo");
+    let o = Command::new("mkfifo")
+        .arg(path)
+        .output()
+        .expect("run mkfifo");
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
@@ -558,7 +561,13 @@ fn input_files_that_are_not_files_are_called_what_they_are() {
         make(&dir.path().join("odd.png"));
         fails_promptly_with(
             &["info", &scene],
-            &[words, "scene.toml:", "material `grey`", "`texture`", "odd.png"],
+            &[
+                words,
+                "scene.toml:",
+                "material `grey`",
+                "`texture`",
+                "odd.png",
+            ],
         );
         // As the scene file.
         let dir = tempfile::tempdir().unwrap();
@@ -587,4 +596,33 @@ fn an_object_without_triangles_is_refused() {
     .unwrap();
     fails_with(&["info", &scene], "the 1 triangle(s) of");
     fails_with(&["info", &scene], "all have zero area");
+}
+
+/// A transform that carries an object out of range is refused when the
+/// scene is read, naming the scene file's line, the object and the field,
+/// not later as a camera of NaNs.
+#[test]
+fn transforms_out_of_range_name_the_object_and_field() {
+    for (field, needles) in [
+        (
+            "translate = [1e38, 0, 0]",
+            ["`translate` [1e38, 0.0, 0.0]", "beyond"],
+        ),
+        ("scale = 1e38", ["at time 1 the object reaches", "`scale`"]),
+    ] {
+        let keys = format!(
+            "\n[[objects.keyframes]]\ntime = 0\n[[objects.keyframes]]\ntime = 1\n{field}\n"
+        );
+        let moved = SMALL.replace(
+            "material = \"grey\"\n",
+            &format!("material = \"grey\"{keys}"),
+        );
+        let (_dir, scene) = small_scene(&moved);
+        for n in ["scene.toml:", "object `quad` keyframe"]
+            .iter()
+            .chain(&needles)
+        {
+            fails_with(&["info", &scene], n);
+        }
+    }
 }

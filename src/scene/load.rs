@@ -296,7 +296,7 @@ pub fn load(path: PathBuf) -> Result<Scene> {
             &mut materials,
             &mut warnings,
         )?;
-        let motion = build_motion(&src, &at, o)?;
+        let motion = build_motion(&src, &at, o, &mesh)?;
         objects.push(Object {
             name: o.name.clone(),
             mesh,
@@ -449,6 +449,21 @@ fn special_kind(t: &std::fs::FileType) -> &'static str {
 #[cfg(not(unix))]
 fn special_kind(_: &std::fs::FileType) -> &'static str {
     "something else"
+}
+
+/// A point or vector of the scene: finite, and no farther than
+/// [`super::MAX_COORDINATE`] from the origin on any axis, so that what is
+/// computed from it (differences, squared distances, products of those)
+/// stays finite too. `1e38` is a finite `f32`, but a scene placed there
+/// renders nothing and fails later with NaN cameras that name no field.
+fn coordinates(what: &str, field: &str, values: &[f32]) -> Result<()> {
+    finite(what, field, values)?;
+    ensure!(
+        values.iter().all(|v| v.abs() <= super::MAX_COORDINATE),
+        "{what}: `{field}` {values:?} lies beyond ±{:e}, the farthest a coordinate may reach (so that distances between points stay finite): scale the scene down",
+        super::MAX_COORDINATE
+    );
+    Ok(())
 }
 
 fn finite(what: &str, field: &str, values: &[f32]) -> Result<()> {
@@ -723,16 +738,21 @@ fn resolve_material(
     Ok(materials.len() - 1)
 }
 
-fn build_motion(src: &Source, at: &str, o: &ObjectToml) -> Result<Motion> {
+/// The object's keyframes, each checked to keep `mesh` within
+/// [`super::MAX_COORDINATE`]: `scale` can carry a small object out of
+/// range where `translate` and `pivot` are in range. Between keys the
+/// object's points then stay within a few times that bound (translation
+/// and scale are interpolated linearly, rotation keeps lengths).
+fn build_motion(src: &Source, at: &str, o: &ObjectToml, mesh: &Mesh) -> Result<Motion> {
     let what = format!("{at}: object `{}`", o.name);
     let pivot = o.pivot.unwrap_or([0.0; 3]);
-    finite(&what, "pivot", &pivot)?;
+    coordinates(&what, "pivot", &pivot)?;
     let mut keys: Vec<Keyframe> = Vec::new();
     for k in &o.keyframes {
         let kat = format!("{}: object `{}` keyframe", src.at(k), o.name);
         let k = k.get_ref();
         finite(&kat, "time", &[k.time])?;
-        finite(&kat, "translate", &k.translate)?;
+        coordinates(&kat, "translate", &k.translate)?;
         if let Some(prev) = keys.last() {
             ensure!(
                 k.time > prev.time,
@@ -743,7 +763,7 @@ fn build_motion(src: &Source, at: &str, o: &ObjectToml) -> Result<Motion> {
         }
         let rotation = match &k.rotate {
             Some(r) => {
-                finite(&kat, "rotate.axis", &r.axis)?;
+                coordinates(&kat, "rotate.axis", &r.axis)?;
                 finite(&kat, "rotate.degrees", &[r.degrees])?;
                 let axis = Vec3::from(r.axis).normalize_or_zero();
                 ensure!(
@@ -760,14 +780,43 @@ fn build_motion(src: &Source, at: &str, o: &ObjectToml) -> Result<Motion> {
             scale.is_finite() && scale > 0.0,
             "{kat}: `scale` {scale} must be a positive number"
         );
-        keys.push(Keyframe {
+        let key = Keyframe {
             time: k.time,
             translation: k.translate.into(),
             rotation,
             scale,
-        });
+        };
+        let pose = Motion::with_pivot(vec![key], pivot.into()).pose(k.time);
+        if let Some(far) = farthest_corner(mesh, pose) {
+            bail!(
+                "{kat}: at time {} the object reaches {far}, beyond ±{:e}, the farthest a coordinate may reach (so that distances between points stay finite): lower `scale` or `translate`",
+                k.time,
+                super::MAX_COORDINATE
+            );
+        }
+        keys.push(key);
     }
     Ok(Motion::with_pivot(keys, pivot.into()))
+}
+
+/// The world position of a corner of `mesh`'s bounds under `pose` that is
+/// not finite or lies beyond [`super::MAX_COORDINATE`], if any.
+fn farthest_corner(mesh: &Mesh, pose: glam::Affine3A) -> Option<Vec3> {
+    let lo = mesh.positions.iter().fold(Vec3::INFINITY, |a, &p| a.min(p));
+    let hi = mesh
+        .positions
+        .iter()
+        .fold(Vec3::NEG_INFINITY, |a, &p| a.max(p));
+    (0..8)
+        .map(|i| {
+            let pick = |bit: u32, l: f32, h: f32| if i & bit == 0 { l } else { h };
+            pose.transform_point3(Vec3::new(
+                pick(1, lo.x, hi.x),
+                pick(2, lo.y, hi.y),
+                pick(4, lo.z, hi.z),
+            ))
+        })
+        .find(|w| !w.is_finite() || w.abs().max_element() > super::MAX_COORDINATE)
 }
 
 fn build_light(at: &str, l: &LightToml) -> Result<Light> {
@@ -777,7 +826,7 @@ fn build_light(at: &str, l: &LightToml) -> Result<Light> {
             intensity,
         } => {
             let what = format!("{at}: point light");
-            finite(&what, "position", position)?;
+            coordinates(&what, "position", position)?;
             finite(&what, "intensity", intensity)?;
             ensure!(
                 intensity.iter().all(|&c| c >= 0.0),
@@ -827,15 +876,15 @@ fn pose(
     up: V3,
     vfov: f32,
 ) -> Result<(Vec3, Vec3)> {
-    finite(what, "position", &position)?;
-    finite(what, "up", &up)?;
+    coordinates(what, "position", &position)?;
+    coordinates(what, "up", &up)?;
     let dir = match (look_at, direction) {
         (Some(t), None) => {
-            finite(what, "look_at", &t)?;
+            coordinates(what, "look_at", &t)?;
             Vec3::from(t) - Vec3::from(position)
         }
         (None, Some(d)) => {
-            finite(what, "direction", &d)?;
+            coordinates(what, "direction", &d)?;
             Vec3::from(d)
         }
         _ => bail!("{what}: give exactly one of `look_at` and `direction`"),
@@ -861,8 +910,8 @@ fn build_view_space(at: &str, v: &ViewSpaceToml) -> Result<ViewSpace> {
     let what = format!("{at}: [view_space]");
     Ok(match v {
         ViewSpaceToml::Segment { a, b } => {
-            finite(&what, "a", a)?;
-            finite(&what, "b", b)?;
+            coordinates(&what, "a", a)?;
+            coordinates(&what, "b", b)?;
             ensure!(a != b, "{what}: segment end points are equal");
             ViewSpace::Segment {
                 a: (*a).into(),
@@ -870,8 +919,8 @@ fn build_view_space(at: &str, v: &ViewSpaceToml) -> Result<ViewSpace> {
             }
         }
         ViewSpaceToml::Rectangle { min, max } | ViewSpaceToml::Box { min, max } => {
-            finite(&what, "min", min)?;
-            finite(&what, "max", max)?;
+            coordinates(&what, "min", min)?;
+            coordinates(&what, "max", max)?;
             let (lo, hi) = (Vec3::from(*min), Vec3::from(*max));
             ensure!(
                 lo.cmple(hi).all(),
@@ -1006,6 +1055,14 @@ impl ObjFile {
                 self.path.display(),
                 m.name
             );
+            if let Some(c) = p.iter().find(|c| c.abs() > super::MAX_COORDINATE) {
+                bail!(
+                    "{}: group `{}` has a vertex coordinate {c:e} beyond ±{:e}, the farthest a coordinate may reach (so that distances between points stay finite): scale the mesh down",
+                    self.path.display(),
+                    m.name,
+                    super::MAX_COORDINATE
+                );
+            }
             mesh.positions
                 .extend(p.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])));
             if with_uvs {
@@ -1147,6 +1204,31 @@ vfov = 40
             ),
             ("group = \"quad\"", "group = \"cube\"", &["cube", "quad"]),
             ("vfov = 40", "vfov = 400", &["vfov", "main"]),
+            (
+                "translate = [1, 0, 0]",
+                "translate = [1e38, 0, 0]",
+                &["object `quad` keyframe", "`translate`", "beyond"],
+            ),
+            (
+                "translate = [1, 0, 0]",
+                "translate = [1, 0, 0]\nscale = 1e38",
+                &["object `quad` keyframe", "at time 1", "`scale`"],
+            ),
+            (
+                "pivot = [0.5, 0.5, 0]",
+                "pivot = [0.5, -1e38, 0]",
+                &["object `quad`", "`pivot`", "beyond"],
+            ),
+            (
+                "position = [0.5, 0.5, -3]",
+                "position = [0.5, 0.5, -3e38]",
+                &["camera `main`", "`position`", "beyond"],
+            ),
+            (
+                "look_at = [0.5, 0.5, 0]",
+                "look_at = [3e38, 0.5, 0]",
+                &["camera `main`", "`look_at`", "beyond"],
+            ),
             ("fps = 30", "fps = 30\nspeed = 2", &["speed"]),
             ("type = \"diffuse\"", "type = \"velvet\"", &["velvet"]),
             (

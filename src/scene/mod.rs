@@ -22,6 +22,13 @@ mod wavefront;
 
 pub use motion::{Keyframe, Motion};
 
+/// The farthest from the origin, on any axis, that a scene's points,
+/// cameras and lights may lie (in scene units). Far beyond any scene's
+/// size (the bundled scenes reach 1e7), and far enough below `f32::MAX`
+/// (3.4e38) that differences of points, their squared lengths and
+/// products of those stay finite.
+pub const MAX_COORDINATE: f32 = 1e15;
+
 /// A validated scene.
 #[derive(Clone, Debug)]
 pub struct Scene {

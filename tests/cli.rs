@@ -626,3 +626,35 @@ fn transforms_out_of_range_name_the_object_and_field() {
         }
     }
 }
+
+/// A damaged radiosity store says that deleting it repairs it, and it does.
+#[test]
+fn a_damaged_radiosity_store_says_how_to_repair_it() {
+    let furnace = scene("furnace");
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("rad");
+    let store_s = store.to_str().unwrap();
+    let o = rangewalk(&["radiosity", &furnace, "--quality", "0", "--out", store_s]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let irr = store.join("irradiance.bin");
+    let mut bytes = std::fs::read(&irr).unwrap();
+    bytes[0] ^= 1;
+    std::fs::write(&irr, bytes).unwrap();
+    let out = dir.path().join("x.exr");
+    let out = out.to_str().unwrap();
+    let args = with(
+        &furnace,
+        out,
+        &[
+            ("--time", "0"),
+            ("--spp", "1"),
+            ("--indirect", "radiosity"),
+            ("--bake", store_s),
+        ],
+    );
+    fails_with(&args, &format!("delete {store_s} to repair it"));
+    std::fs::remove_dir_all(&store).unwrap();
+    let o = rangewalk(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(store.join("irradiance.bin").is_file());
+}

@@ -658,3 +658,100 @@ fn a_damaged_radiosity_store_says_how_to_repair_it() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(store.join("irradiance.bin").is_file());
 }
+
+/// A negative `--time` reaches the scene's check (clap would take `-1`
+/// for a flag), and a time outside an animated scene's animation is an
+/// error naming the value and the span; a static scene takes any time.
+#[test]
+fn times_outside_the_animation_are_refused_naming_the_span() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.exr");
+    let out = out.to_str().unwrap();
+    let cb = scene("cornell-box");
+    for t in ["-1", "1.5"] {
+        let args = with(
+            &cb,
+            out,
+            &[("--time", t), ("--spp", "1"), ("--size", "8x8")],
+        );
+        fails_with(
+            &args,
+            &format!("--time: time {t} s lies outside the animation of"),
+        );
+        fails_with(&args, "[0, 1] s");
+        assert!(!Path::new(out).exists());
+    }
+    let static_scene = scene("furnace");
+    let args = with(
+        &static_scene,
+        out,
+        &[("--time", "-1"), ("--spp", "1"), ("--size", "8x8")],
+    );
+    let o = rangewalk(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // `synth` takes a negative time as a value too: what fails is the
+    // missing bake.
+    let bake = dir.path().join("no-bake");
+    let o = rangewalk(&[
+        "synth",
+        bake.to_str().unwrap(),
+        "--time",
+        "-1",
+        "--out",
+        out,
+    ]);
+    let err = stderr(&o);
+    assert!(!o.status.success());
+    assert!(
+        !err.contains("unexpected argument") && err.contains("no-bake"),
+        "{err}"
+    );
+}
+
+/// Base images too small to show a scene, or too large to read back, are
+/// refused before any work, naming the size and the range.
+#[test]
+fn base_image_sizes_outside_the_range_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bake");
+    let out = out.to_str().unwrap();
+    let cb = scene("cornell-box");
+    for (size, needle) in [
+        ("7", "--size 7 is below the smallest base image side, 16"),
+        ("0", "--size 0 is below the smallest base image side, 16"),
+        (
+            "9000",
+            "--size 9000 is above the largest base image side, 8192",
+        ),
+    ] {
+        let start = std::time::Instant::now();
+        fails_with(
+            &[
+                "bake",
+                &cb,
+                "--quality",
+                "0.1",
+                "--out",
+                out,
+                "--size",
+                size,
+            ],
+            needle,
+        );
+        assert!(start.elapsed().as_secs_f64() < 10.0, "{size}: slow to fail");
+    }
+    fails_with(
+        &[
+            "bake",
+            &cb,
+            "--quality",
+            "0.1",
+            "--out",
+            out,
+            "--frame-size",
+            "8192x8192",
+        ],
+        "above the largest side, 8192",
+    );
+    assert!(!Path::new(out).exists());
+}

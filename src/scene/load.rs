@@ -342,6 +342,9 @@ pub fn load(path: PathBuf) -> Result<Scene> {
         .map(|v| build_view_space(&src.at(v), v.get_ref()))
         .transpose()?;
 
+    // A walk through an animated scene is a walk through its animation; a
+    // static scene's paths may keep any times.
+    let moving = objects.iter().any(|o| !o.motion.is_static());
     let mut paths = Vec::new();
     for p in &parsed.paths {
         let at = src.at(p);
@@ -352,6 +355,13 @@ pub fn load(path: PathBuf) -> Result<Scene> {
             let what = format!("{}: path `{}` key", src.at(k), p.name);
             let k = k.get_ref();
             finite(&what, "time", &[k.time])?;
+            ensure!(
+                !moving || (animation.start..=animation.end).contains(&k.time),
+                "{what}: time {} lies outside the animation [{}, {}] s, where nothing would move: give times within it or extend [animation]",
+                k.time,
+                animation.start,
+                animation.end
+            );
             if let Some(prev) = keys.last() {
                 ensure!(
                     k.time > prev.time,
@@ -1248,6 +1258,29 @@ vfov = 40
                 assert!(msg.contains(n), "`{n}` missing from: {msg}");
             }
         }
+    }
+
+    /// A walk path through an animated scene stays within its animation
+    /// (beyond it nothing would move); a static scene's paths keep any
+    /// times.
+    #[test]
+    fn path_keys_of_an_animated_scene_lie_within_the_animation() {
+        let path = "\n[[paths]]\nname = \"walk\"\n[[paths.keys]]\ntime = 0\nposition = [0, 0, -3]\ndirection = [0, 0, 1]\nvfov = 40\n[[paths.keys]]\ntime = 5\nposition = [1, 0, -3]\ndirection = [0, 0, 1]\nvfov = 40\n";
+        let msg = load_err(&format!("{GOOD}{path}"));
+        assert!(
+            msg.contains("path `walk` key")
+                && msg.contains("time 5 lies outside the animation [0, 1] s"),
+            "{msg}"
+        );
+        let still = GOOD.replace(
+            "translate = [1, 0, 0]\nrotate = { axis = [0, 0, 1], degrees = 90 }\n",
+            "",
+        );
+        assert_ne!(still, GOOD);
+        let (_d, p) = scene_dir(&format!("{still}{path}"));
+        let s = Scene::load(p).unwrap_or_else(|e| panic!("{e:#}"));
+        assert!(s.is_static());
+        assert!(s.check_time(-1.0).is_ok() && s.check_time(f32::NAN).is_err());
     }
 
     #[test]

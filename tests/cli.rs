@@ -536,7 +536,8 @@ fn mkfifo(path: &Path) {
 /// is never opened (that would block).
 #[test]
 fn input_files_that_are_not_files_are_called_what_they_are() {
-    let kinds: [(fn(&Path), &str); 3] = [
+    type Make = fn(&Path);
+    let kinds: [(Make, &str); 3] = [
         (|p| std::fs::create_dir(p).unwrap(), "is a folder"),
         (mkfifo, "is a FIFO (named pipe), not a regular file"),
         (

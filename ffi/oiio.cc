@@ -1,11 +1,17 @@
 #include "rangewalk/ffi/oiio.h"
 #include "rangewalk/src/image/oiio.rs.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cstring>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -23,26 +29,135 @@ namespace {
     throw std::runtime_error(message);
 }
 
-// Creates a writer of the named format (not guessed from the file name, so
-// temporary names need no particular extension) and opens `path` with `spec`.
-std::unique_ptr<OIIO::ImageOutput> open_output(const std::string &path, const char *format,
-                                               const OIIO::ImageSpec &spec) {
-    auto out = OIIO::ImageOutput::create(format);
-    if (!out)
-        fail(path, std::string("no ") + format + " writer", OIIO::geterror());
-    if (!out->open(path, spec))
-        fail(path, "cannot open for writing", out->geterror());
-    return out;
+// What an OS error number means for someone writing a file, with what to
+// do where there is something to do: OpenImageIO itself only says "File
+// output failed", which does not tell a full disk from a bad path.
+std::string os_error(int err) {
+    switch (err) {
+    case ENOSPC:
+        return "no space left on the device (the disk is full): free some space or "
+               "write elsewhere";
+    case EDQUOT:
+        return "disk quota exceeded: free some space or write elsewhere";
+    case EFBIG:
+        return "file too large for this file system: write elsewhere";
+    default:
+        return std::strerror(err);
+    }
 }
 
-void finish(OIIO::ImageOutput &out, const std::string &path, bool written) {
-    if (!written) {
-        std::string detail = out.geterror();
-        out.close();
-        fail(path, "cannot write pixels", detail);
+// The file an image is written to, through its descriptor rather than
+// stdio, so that the first OS error of a write (or of closing: some file
+// systems only report a full disk then) is kept for the message.
+// OpenImageIO's own IOFile keeps no errno, and through its buffered FILE
+// a full disk may only show at fclose. Writes are unbuffered: OpenEXR
+// hands over whole headers and compressed chunks (some 600 writes for a
+// 512x512 range image, under 2 ms).
+class FileOutput final : public OIIO::Filesystem::IOProxy {
+public:
+    explicit FileOutput(const std::string &path) : IOProxy(path, Write) {
+        m_fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+        if (m_fd < 0) {
+            m_errno = errno;
+            m_mode = Closed;
+        }
     }
-    if (!out.close())
-        fail(path, "cannot finish writing", out.geterror());
+    ~FileOutput() override { close(); }
+    const char *proxytype() const override { return "rangewalk-file"; }
+    void close() override {
+        std::lock_guard<std::mutex> lock(m_mutex);
+        if (m_fd >= 0 && ::close(m_fd) != 0 && m_errno == 0)
+            m_errno = errno;
+        m_fd = -1;
+        m_mode = Closed;
+    }
+    bool seek(int64_t offset) override {
+        m_pos = offset;
+        return offset >= 0;
+    }
+    size_t write(const void *buf, size_t size) override {
+        size_t n = pwrite(buf, size, m_pos);
+        m_pos += int64_t(n);
+        return n;
+    }
+    // OpenEXR may write from several threads; each write is whole here.
+    size_t pwrite(const void *buf, size_t size, int64_t offset) override {
+        std::lock_guard<std::mutex> lock(m_mutex);
+        const char *p = static_cast<const char *>(buf);
+        size_t done = 0;
+        while (m_fd >= 0 && done < size) {
+            ssize_t n = ::pwrite(m_fd, p + done, size - done, offset + int64_t(done));
+            if (n < 0 && errno == EINTR)
+                continue;
+            if (n <= 0) {
+                if (m_errno == 0)
+                    m_errno = n < 0 ? errno : EIO;
+                break;
+            }
+            done += size_t(n);
+        }
+        m_size = std::max(m_size, size_t(offset) + done);
+        return done;
+    }
+    size_t size() const override { return m_size; }
+    // The first OS error number, 0 if none.
+    int error_number() {
+        std::lock_guard<std::mutex> lock(m_mutex);
+        return m_errno;
+    }
+
+private:
+    int m_fd = -1;
+    int m_errno = 0;
+    size_t m_size = 0;
+    std::mutex m_mutex;
+};
+
+// A writer and the file it writes: the writer refers to the file, so the
+// file goes last.
+struct Output {
+    std::unique_ptr<FileOutput> file;
+    std::unique_ptr<OIIO::ImageOutput> out;
+};
+
+// Creates a writer of the named format (not guessed from the file name, so
+// temporary names need no particular extension) and opens `path` with
+// `spec`, through a FileOutput where the format takes one.
+Output open_output(const std::string &path, const char *format, const OIIO::ImageSpec &spec) {
+    Output o;
+    o.out = OIIO::ImageOutput::create(format);
+    if (!o.out)
+        fail(path, std::string("no ") + format + " writer", OIIO::geterror());
+    if (o.out->supports("ioproxy")) {
+        o.file = std::make_unique<FileOutput>(path);
+        if (int err = o.file->error_number())
+            fail(path, "cannot create", os_error(err));
+        o.out->set_ioproxy(o.file.get());
+    }
+    if (!o.out->open(path, spec)) {
+        int err = o.file ? o.file->error_number() : 0;
+        fail(path, "cannot open for writing", err ? os_error(err) : o.out->geterror());
+    }
+    return o;
+}
+
+// Closes the writer and its file; fails naming the first OS error, where
+// there was one, else what OpenImageIO says.
+void finish(Output &o, const std::string &path, bool written) {
+    std::string detail = written ? "" : o.out->geterror();
+    bool closed = o.out->close();
+    if (written && !closed)
+        detail = o.out->geterror();
+    int err = 0;
+    if (o.file) {
+        o.file->close();
+        err = o.file->error_number();
+    }
+    const char *what = written ? "cannot finish writing" : "cannot write pixels";
+    if (err)
+        fail(path, what, os_error(err));
+    if (!written || !closed)
+        fail(path, what, detail);
 }
 
 void put_attribute(OIIO::ImageSpec &spec, const Attribute &a) {
@@ -115,9 +230,9 @@ void write_image(rust::Str path_str, rust::Str format, const Raster &image) {
         for (size_t i = 0; i < n; ++i)
             pixels[i * nch + c] = data[i];
     }
-    auto out = open_output(path, std::string(format).c_str(), spec);
-    bool ok = out->write_image(OIIO::TypeUnknown, pixels.data());
-    finish(*out, path, ok);
+    Output out = open_output(path, std::string(format).c_str(), spec);
+    bool ok = out.out->write_image(OIIO::TypeUnknown, pixels.data());
+    finish(out, path, ok);
 }
 
 void write_rgb8(rust::Str path_str, uint32_t width, uint32_t height,
@@ -128,9 +243,9 @@ void write_rgb8(rust::Str path_str, uint32_t width, uint32_t height,
                        "x" + std::to_string(height) + " RGB pixels",
              "");
     OIIO::ImageSpec spec(int(width), int(height), 3, OIIO::TypeUInt8);
-    auto out = open_output(path, "png", spec);
-    bool ok = out->write_image(OIIO::TypeUInt8, rgb.data());
-    finish(*out, path, ok);
+    Output out = open_output(path, "png", spec);
+    bool ok = out.out->write_image(OIIO::TypeUInt8, rgb.data());
+    finish(out, path, ok);
 }
 
 rust::Slice<const uint32_t> Words::channel(size_t c) const {

@@ -167,8 +167,8 @@ enum IndirectArg {
 
 #[derive(clap::Args)]
 struct ViewArgs {
-    /// Scene time in seconds.
-    #[arg(long, default_value_t = 0.0)]
+    /// Scene time in seconds (within the animation of an animated scene).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     time: f32,
     /// Named camera of the scene.
     #[arg(long, default_value = "main")]
@@ -205,17 +205,7 @@ impl ViewArgs {
     }
 
     fn check_time(&self, scene: &Scene) -> Result<()> {
-        if !self.time.is_finite() {
-            bail!("--time {} is not a number", self.time);
-        }
-        let a = scene.animation;
-        if !scene.is_static() && (self.time < a.start || self.time > a.end) {
-            eprintln!(
-                "note: --time {} lies outside the animation [{}, {}] s; objects hold their end poses",
-                self.time, a.start, a.end
-            );
-        }
-        Ok(())
+        scene.check_time(self.time).context("--time")
     }
 }
 

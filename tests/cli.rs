@@ -388,3 +388,371 @@ fn experiments_refuse_subpixels_out_of_range_before_any_work() {
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().flatten().collect();
     assert!(left.is_empty(), "{left:?}");
 }
+
+// Messages that say what is wrong and what to do (issue 49).
+
+/// A tmpfs of `size` mounted on a fresh folder, unmounted when dropped.
+/// Mounting needs root, as these tests run here and in CI: a machine that
+/// cannot mount fails the test rather than skips it.
+struct TinyDisk {
+    dir: tempfile::TempDir,
+}
+
+impl TinyDisk {
+    fn new(size: &str) -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let o = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs"])
+            .arg(dir.path())
+            .output()
+            .expect("run mount");
+        assert!(
+            o.status.success(),
+            "cannot mount a tmpfs (the test needs root): {}",
+            stderr(&o)
+        );
+        Self { dir }
+    }
+
+    fn path(&self, name: &str) -> String {
+        self.dir.path().join(name).to_string_lossy().into_owned()
+    }
+
+    /// Fills the disk to the last byte.
+    fn fill(&self) {
+        let filler = vec![0u8; 1 << 20];
+        assert!(std::fs::write(self.path("filler"), filler).is_err());
+    }
+}
+
+impl Drop for TinyDisk {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(self.dir.path()).status();
+    }
+}
+
+/// Every image format, written to a full disk, says the disk is full and
+/// names the file, and leaves nothing under its name.
+#[test]
+fn a_full_disk_is_named_as_such() {
+    let cb = scene("cornell-box");
+    let disk = TinyDisk::new("16k");
+    // A 64x64 range image is about 64 KiB.
+    let big = disk.path("big.exr");
+    let args = with(&cb, &big, &[("--spp", "1"), ("--size", "64x64")]);
+    fails_with(&args, "no space left on the device (the disk is full)");
+    fails_with(&args, "big.exr");
+    assert!(!Path::new(&big).exists());
+    disk.fill();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.exr");
+    let out = out.to_str().unwrap();
+    for (flag, name) in [
+        ("--out", "x.exr"),
+        ("--preview", "p.png"),
+        ("--hdr", "p.hdr"),
+    ] {
+        let file = disk.path(name);
+        let args = with(&cb, out, &[("--spp", "1"), (flag, &file)]);
+        let o = rangewalk(&args);
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{flag}: {err}");
+        assert!(
+            err.contains("the disk is full") && err.contains(name),
+            "{flag}: {err}"
+        );
+        assert!(!Path::new(&file).exists(), "{flag}");
+    }
+}
+
+/// A folder holding `scene.toml` (the given text) and `quad.obj`, a unit
+/// square facing -z.
+fn small_scene(toml: &str) -> (tempfile::TempDir, String) {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("quad.obj"),
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n",
+    )
+    .unwrap();
+    let path = dir.path().join("scene.toml");
+    std::fs::write(&path, toml).unwrap();
+    (dir, path.to_string_lossy().into_owned())
+}
+
+const SMALL: &str = r#"
+[[materials]]
+name = "grey"
+type = "diffuse"
+reflectance = [0.5, 0.5, 0.5]
+
+[[objects]]
+name = "quad"
+mesh = "quad.obj"
+material = "grey"
+
+[[cameras]]
+name = "main"
+position = [0.5, 0.5, -2]
+look_at = [0.5, 0.5, 0]
+vfov = 40
+"#;
+
+/// Runs `args`, which must fail within 10 s (a FIFO opened for reading
+/// would block forever) with every needle in the message.
+fn fails_promptly_with(args: &[&str], needles: &[&str]) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rangewalk"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run rangewalk");
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed().as_secs() >= 10 {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            panic!("{args:?} still runs after 10 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let o = child.wait_with_output().unwrap();
+    assert!(!o.status.success(), "{args:?} succeeded");
+    let err = stderr(&o);
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: `{n}` not in {err}");
+    }
+}
+
+fn mkfifo(path: &Path) {
+    let o = Command::new("mkfifo")
+        .arg(path)
+        .output()
+        .expect("run mkfifo");
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// A mesh, texture or scene file that is a folder, a FIFO or a symlink
+/// loop is called what it is, naming the scene file and field, and a FIFO
+/// is never opened (that would block).
+#[test]
+fn input_files_that_are_not_files_are_called_what_they_are() {
+    type Make = fn(&Path);
+    let kinds: [(Make, &str); 3] = [
+        (|p| std::fs::create_dir(p).unwrap(), "is a folder"),
+        (mkfifo, "is a FIFO (named pipe), not a regular file"),
+        (
+            |p| std::os::unix::fs::symlink(p.file_name().unwrap(), p).unwrap(),
+            "is a symlink loop",
+        ),
+    ];
+    for (make, words) in kinds {
+        // As a mesh.
+        let (dir, scene) = small_scene(&SMALL.replace("quad.obj", "odd.obj"));
+        make(&dir.path().join("odd.obj"));
+        fails_promptly_with(
+            &["info", &scene],
+            &[words, "scene.toml:", "object `quad`", "`mesh`", "odd.obj"],
+        );
+        // As a texture.
+        let textured = SMALL.replace(
+            "reflectance = [0.5, 0.5, 0.5]",
+            "reflectance = [0.5, 0.5, 0.5]\ntexture = \"odd.png\"",
+        );
+        let (dir, scene) = small_scene(&textured);
+        make(&dir.path().join("odd.png"));
+        fails_promptly_with(
+            &["info", &scene],
+            &[
+                words,
+                "scene.toml:",
+                "material `grey`",
+                "`texture`",
+                "odd.png",
+            ],
+        );
+        // As the scene file.
+        let dir = tempfile::tempdir().unwrap();
+        let scene = dir.path().join("scene.toml");
+        make(&scene);
+        fails_promptly_with(&["info", scene.to_str().unwrap()], &[words, "scene.toml"]);
+    }
+}
+
+/// An object without a triangle is refused, naming it and its mesh, even
+/// beside objects that have triangles.
+#[test]
+fn an_object_without_triangles_is_refused() {
+    let two = format!(
+        "{SMALL}\n[[objects]]\nname = \"ghost\"\nmesh = \"points.obj\"\nmaterial = \"grey\"\n"
+    );
+    let (dir, scene) = small_scene(&two);
+    std::fs::write(dir.path().join("points.obj"), "v 0 0 0\nv 1 0 0\np 1 2\n").unwrap();
+    fails_with(&["info", &scene], "object `ghost` has no triangles");
+    fails_with(&["info", &scene], "points.obj has no faces");
+    // Faces that all have zero area.
+    std::fs::write(
+        dir.path().join("points.obj"),
+        "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    fails_with(&["info", &scene], "the 1 triangle(s) of");
+    fails_with(&["info", &scene], "all have zero area");
+}
+
+/// A transform that carries an object out of range is refused when the
+/// scene is read, naming the scene file's line, the object and the field,
+/// not later as a camera of NaNs.
+#[test]
+fn transforms_out_of_range_name_the_object_and_field() {
+    for (field, needles) in [
+        (
+            "translate = [1e38, 0, 0]",
+            ["`translate` [1e38, 0.0, 0.0]", "beyond"],
+        ),
+        ("scale = 1e38", ["at time 1 the object reaches", "`scale`"]),
+    ] {
+        let keys = format!(
+            "\n[[objects.keyframes]]\ntime = 0\n[[objects.keyframes]]\ntime = 1\n{field}\n"
+        );
+        let moved = SMALL.replace(
+            "material = \"grey\"\n",
+            &format!("material = \"grey\"{keys}"),
+        );
+        let (_dir, scene) = small_scene(&moved);
+        for n in ["scene.toml:", "object `quad` keyframe"]
+            .iter()
+            .chain(&needles)
+        {
+            fails_with(&["info", &scene], n);
+        }
+    }
+}
+
+/// A damaged radiosity store says that deleting it repairs it, and it does.
+#[test]
+fn a_damaged_radiosity_store_says_how_to_repair_it() {
+    let furnace = scene("furnace");
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("rad");
+    let store_s = store.to_str().unwrap();
+    let o = rangewalk(&["radiosity", &furnace, "--quality", "0", "--out", store_s]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let irr = store.join("irradiance.bin");
+    let mut bytes = std::fs::read(&irr).unwrap();
+    bytes[0] ^= 1;
+    std::fs::write(&irr, bytes).unwrap();
+    let out = dir.path().join("x.exr");
+    let out = out.to_str().unwrap();
+    let args = with(
+        &furnace,
+        out,
+        &[
+            ("--time", "0"),
+            ("--spp", "1"),
+            ("--indirect", "radiosity"),
+            ("--bake", store_s),
+        ],
+    );
+    fails_with(&args, &format!("delete {store_s} to repair it"));
+    std::fs::remove_dir_all(&store).unwrap();
+    let o = rangewalk(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(store.join("irradiance.bin").is_file());
+}
+
+/// A negative `--time` reaches the scene's check (clap would take `-1`
+/// for a flag), and a time outside an animated scene's animation is an
+/// error naming the value and the span; a static scene takes any time.
+#[test]
+fn times_outside_the_animation_are_refused_naming_the_span() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.exr");
+    let out = out.to_str().unwrap();
+    let cb = scene("cornell-box");
+    for t in ["-1", "1.5"] {
+        let args = with(
+            &cb,
+            out,
+            &[("--time", t), ("--spp", "1"), ("--size", "8x8")],
+        );
+        fails_with(
+            &args,
+            &format!("--time: time {t} s lies outside the animation of"),
+        );
+        fails_with(&args, "[0, 1] s");
+        assert!(!Path::new(out).exists());
+    }
+    let static_scene = scene("furnace");
+    let args = with(
+        &static_scene,
+        out,
+        &[("--time", "-1"), ("--spp", "1"), ("--size", "8x8")],
+    );
+    let o = rangewalk(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // `synth` takes a negative time as a value too: what fails is the
+    // missing bake.
+    let bake = dir.path().join("no-bake");
+    let o = rangewalk(&[
+        "synth",
+        bake.to_str().unwrap(),
+        "--time",
+        "-1",
+        "--out",
+        out,
+    ]);
+    let err = stderr(&o);
+    assert!(!o.status.success());
+    assert!(
+        !err.contains("unexpected argument") && err.contains("no-bake"),
+        "{err}"
+    );
+}
+
+/// Base images too small to show a scene, or too large to read back, are
+/// refused before any work, naming the size and the range.
+#[test]
+fn base_image_sizes_outside_the_range_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bake");
+    let out = out.to_str().unwrap();
+    let cb = scene("cornell-box");
+    for (size, needle) in [
+        ("7", "--size 7 is below the smallest base image side, 16"),
+        ("0", "--size 0 is below the smallest base image side, 16"),
+        (
+            "9000",
+            "--size 9000 is above the largest base image side, 8192",
+        ),
+    ] {
+        let start = std::time::Instant::now();
+        fails_with(
+            &[
+                "bake",
+                &cb,
+                "--quality",
+                "0.1",
+                "--out",
+                out,
+                "--size",
+                size,
+            ],
+            needle,
+        );
+        assert!(start.elapsed().as_secs_f64() < 10.0, "{size}: slow to fail");
+    }
+    fails_with(
+        &[
+            "bake",
+            &cb,
+            "--quality",
+            "0.1",
+            "--out",
+            out,
+            "--frame-size",
+            "8192x8192",
+        ],
+        "above the largest side, 8192",
+    );
+    assert!(!Path::new(out).exists());
+}

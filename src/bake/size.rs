@@ -46,6 +46,19 @@ pub fn base_size(projection: BaseProjection, frame: (u32, u32), vfov_deg: f32) -
     n.div_ceil(16).max(1) * 16
 }
 
+/// The smallest side a base image may have. Below it a sphere pixel spans
+/// more than 12.7° (4π/256 sr), so every surface but the nearest walls
+/// falls into a pixel or two and frames show blocks, not the scene: such a
+/// size is only ever a slip (`--size 7` for a 7-pixel frame?). The size
+/// rule rounds up to a multiple of 16, so it never goes below this.
+pub const MIN_SIDE: u32 = 16;
+
+/// The largest side: base images are range images, which may hold at
+/// most [`crate::image::MAX_PIXELS`] pixels to be read back.
+pub fn max_side() -> u32 {
+    (crate::image::MAX_PIXELS as f64).sqrt() as u32
+}
+
 /// The side of a bake's base images: `size` if given, else sized for
 /// `frame`-sized frames at the scene's narrowest field of view; with the
 /// sentence that says where it came from.
@@ -57,7 +70,14 @@ pub fn resolve(
 ) -> Result<(u32, String)> {
     let kind = format!("{projection:?}").to_lowercase();
     match size {
-        Some(0) => bail!("--size must be at least 1"),
+        Some(n) if n < MIN_SIDE => bail!(
+            "--size {n} is below the smallest base image side, {MIN_SIDE}: a {kind} base of {n}x{n} pixels shows no scene; give --size {MIN_SIDE} or more, or leave it out to size bases from --frame-size"
+        ),
+        Some(n) if n > max_side() => bail!(
+            "--size {n} is above the largest base image side, {}: a base image may hold at most {} pixels",
+            max_side(),
+            crate::image::MAX_PIXELS
+        ),
         Some(n) => Ok((n, format!("base images: {n}x{n} {kind} (--size)"))),
         None => {
             let (w, h) = frame;
@@ -68,6 +88,12 @@ pub fn resolve(
                 );
             };
             let n = base_size(projection, frame, fov);
+            if n > max_side() {
+                bail!(
+                    "base images sized for {w}x{h} frames at the scene's narrowest field of view, {fov}°, would be {n}x{n} pixels, above the largest side, {}: lower --frame-size or give --size",
+                    max_side()
+                );
+            }
             Ok((
                 n,
                 format!(
@@ -97,5 +123,7 @@ mod tests {
         // A fisheye covers half the directions over a wider circle.
         let f = base_size(BaseProjection::Fisheye, (512, 512), 39.3077);
         assert!(f < n && f > n / 2, "{f}");
+        // The rule never goes below the smallest side, even for one pixel.
+        assert_eq!(base_size(BaseProjection::Fisheye, (1, 1), 179.0), MIN_SIDE);
     }
 }

@@ -40,9 +40,9 @@ pub unsafe extern "C" fn rw_render(
         if spp == 0 {
             return Err(Failure::invalid("spp must be at least 1"));
         }
-        if !time.is_finite() {
-            return Err(Failure::invalid(format!("time {time} is not finite")));
-        }
+        scene
+            .check_time(time)
+            .map_err(|e| Failure::invalid(format!("{e:#}")))?;
         let camera = view.camera(width, height)?;
         let backend = Backend::default_available();
         let render_failed = |e| Failure::of(rw_status::RW_RENDER, e);

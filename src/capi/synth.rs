@@ -276,9 +276,10 @@ pub unsafe extern "C" fn rw_synth_with(
         let options = unsafe { args::sized(options, rw_synth_options::default(), "options") }?;
         args::out(rgb, "rgb")?;
         args::floats(width, height, 3)?;
-        if !time.is_finite() {
-            return Err(Failure::invalid(format!("time {time} is not finite")));
-        }
+        handle
+            .scene
+            .check_time(time)
+            .map_err(|e| Failure::invalid(format!("{e:#}")))?;
         let (options, budget) = options.options()?;
         let camera = view.camera(width, height)?;
         let kept = {

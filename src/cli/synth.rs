@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use rangewalk::bake::Bake;
 use rangewalk::eval::walkcheck::ReferenceChecks;
 use rangewalk::image;
@@ -117,8 +117,9 @@ pub struct SynthArgs {
     /// (the frame `rangewalk walk` and `rangewalk view --path` show then).
     #[arg(long, conflicts_with = "camera")]
     pub path: Option<String>,
-    /// Scene time in seconds.
-    #[arg(long)]
+    /// Scene time in seconds (within the animation of an animated scene,
+    /// within the path's keys with --path).
+    #[arg(long, allow_negative_numbers = true)]
     pub time: f32,
     #[arg(long, default_value = DEFAULT_SIZE, value_parser = image::parse_size)]
     pub size: (u32, u32),
@@ -139,8 +140,18 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
         image::check_output("--preview", p, image::OutputKind::Png)?;
     }
     let (scene, bake) = args.synth.open(&args.bake)?;
+    scene.check_time(args.time).context("--time")?;
     let desc = match &args.path {
-        Some(p) => scene.path(p)?.at(args.time),
+        Some(p) => {
+            let path = scene.path(p)?;
+            let (first, last) = path.span();
+            anyhow::ensure!(
+                (first..=last).contains(&args.time),
+                "--time {} lies outside path `{p}`'s keys, [{first}, {last}] s, where its camera would stand still: give a time in that range",
+                args.time
+            );
+            path.at(args.time)
+        }
         None => scene.camera(&args.camera)?.clone(),
     };
     if let Some(w) = view_space_warning(&scene, &format!("camera `{}`", desc.name), desc.position) {

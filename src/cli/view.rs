@@ -21,7 +21,7 @@ pub struct ViewArgs {
     #[arg(long)]
     pub camera: Option<String>,
     /// Scene time to start at [default: the animation's start].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub time: Option<f32>,
     /// Play this walk path of the scene, looping: the viewer takes its
     /// pose and time at every frame.

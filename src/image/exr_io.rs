@@ -68,10 +68,13 @@ pub(super) fn write_planes(path: &Path, planes: &Planes) -> Result<()> {
         Encoding::SMALL_LOSSLESS,
         AnyChannels::sort(channels),
     );
-    Image::from_layer(layer)
-        .write()
-        .to_file(path)
-        .map_err(|e| anyhow!("{}: cannot write EXR: {e}", path.display()))
+    Image::from_layer(layer).write().to_file(path).map_err(|e| {
+        let why = match &e {
+            exr::error::Error::Io(io) => super::write_error::describe(io),
+            e => e.to_string(),
+        };
+        anyhow!("{}: cannot write EXR: {why}", path.display())
+    })
 }
 
 /// Decoded bytes an EXR may hold per byte of its file. No compression the

@@ -34,6 +34,7 @@ mod planes;
 pub mod png_io;
 pub mod rgbe;
 mod texture;
+mod write_error;
 
 pub use crate::output::{check_output, check_output_dir, OutputKind};
 pub use color::tonemap_srgb8;

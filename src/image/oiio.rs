@@ -1,5 +1,9 @@
 //! OpenImageIO through the coarse C++ shim in `ffi/oiio.cc`: whole-file reads
 //! and writes of [`Planes`], so the shim never mirrors OIIO's classes.
+//!
+//! Writes go through the shim's own file proxy, which keeps the OS error of
+//! a failed write: OpenImageIO alone says only "File output failed", for a
+//! full disk as for anything else, and the message must say which.
 
 use std::path::Path;
 

@@ -9,6 +9,7 @@ use glam::Vec3;
 
 use super::color::srgb_decode;
 use super::write_atomically;
+use super::write_error::describe;
 use super::Texture;
 
 /// Writes 8-bit sRGB pixels (`RGBRGB...`, top row first), tagged as sRGB,
@@ -22,9 +23,15 @@ pub fn write(path: impl AsRef<Path>, width: u32, height: u32, rgb: &[u8]) -> Res
         rgb.len()
     );
     write_atomically(path, |tmp| {
-        let err = |e: png::EncodingError| anyhow!("{}: cannot write PNG: {e}", tmp.display());
-        let file =
-            File::create(tmp).with_context(|| format!("{}: cannot create", tmp.display()))?;
+        let err = |e: png::EncodingError| {
+            let why = match &e {
+                png::EncodingError::IoError(io) => describe(io),
+                e => e.to_string(),
+            };
+            anyhow!("{}: cannot write PNG: {why}", tmp.display())
+        };
+        let file = File::create(tmp)
+            .map_err(|e| anyhow!("{}: cannot create: {}", tmp.display(), describe(&e)))?;
         let mut encoder = png::Encoder::new(BufWriter::new(file), width, height);
         encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);

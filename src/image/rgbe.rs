@@ -4,7 +4,7 @@
 use std::fs;
 use std::path::Path;
 
-use anyhow::{bail, ensure, Context, Result};
+use anyhow::{anyhow, bail, ensure, Context, Result};
 use glam::Vec3;
 
 use super::Texture;
@@ -68,7 +68,13 @@ pub fn write(path: impl AsRef<Path>, width: u32, height: u32, radiance: &[Vec3])
         }
     }
     write_atomically(path, |tmp| {
-        fs::write(tmp, &out).with_context(|| format!("{}: cannot write", tmp.display()))
+        fs::write(tmp, &out).map_err(|e| {
+            anyhow!(
+                "{}: cannot write: {}",
+                tmp.display(),
+                super::write_error::describe(&e)
+            )
+        })
     })
 }
 

@@ -227,8 +227,22 @@ pub fn load_for(
     Ok((simplified, series, info))
 }
 
-/// [`load`] with the bake's provenance.
+/// [`load`] with the bake's provenance. Every way the store can be
+/// damaged (unfinished, unreadable, truncated, corrupt, of another
+/// version) is repaired the same way, which the error says: the store is
+/// derived data, solved again by the next command that needs it once it
+/// is gone.
 pub fn load_with_info(dir: &Path) -> Result<(Simplified, TimeSeries, BakeInfo)> {
+    read_store(dir).map_err(|e| {
+        anyhow!(
+            "{e:#}; delete {} to repair it: the next `rangewalk bake` (for a bake's radiosity/), \
+             `rangewalk radiosity` or `render --indirect radiosity --bake` solves radiosity again",
+            dir.display()
+        )
+    })
+}
+
+fn read_store(dir: &Path) -> Result<(Simplified, TimeSeries, BakeInfo)> {
     let mpath = dir.join(MANIFEST);
     if !mpath.exists() && partial_path(dir).exists() {
         bail!(

@@ -184,6 +184,9 @@ impl Source<'_> {
 }
 
 pub fn load(path: PathBuf) -> Result<Scene> {
+    if let Some(why) = not_a_file(&path) {
+        bail!("scene file {} {why}", path.display());
+    }
     let text = std::fs::read_to_string(&path)
         .with_context(|| format!("cannot read scene file {}", path.display()))?;
     let parsed: SceneToml = toml::from_str(&text)
@@ -251,12 +254,39 @@ pub fn load(path: PathBuf) -> Result<Scene> {
         )?;
         let mesh_path = dir.join(&o.mesh);
         if !obj_files.contains_key(&mesh_path) {
+            if let Some(why) = not_a_file(&mesh_path) {
+                bail!(
+                    "{at}: object `{}`: `mesh` {} {why}",
+                    o.name,
+                    mesh_path.display()
+                );
+            }
             obj_files.insert(mesh_path.clone(), ObjFile::read(&mesh_path, &mut warnings)?);
         }
         let obj = &obj_files[&mesh_path];
         let (mesh, mtl_name, dropped) = obj
             .mesh(o.group.as_deref())
             .with_context(|| format!("{at}: object `{}`", o.name))?;
+        // An object without a triangle is never seen, lit or hit: it can
+        // only be a mistake (a wrong group, a model exported at a scale
+        // that rounds it flat, a file of points or lines), and a warning
+        // would let a scene render with something silently missing.
+        if mesh.triangles.is_empty() {
+            let part = match &o.group {
+                Some(g) => format!("group `{g}` of {}", mesh_path.display()),
+                None => mesh_path.display().to_string(),
+            };
+            if dropped > 0 {
+                bail!(
+                    "{at}: object `{}` has no triangles: the {dropped} triangle(s) of {part} all have zero area; fix the mesh or remove the object",
+                    o.name
+                );
+            }
+            bail!(
+                "{at}: object `{}` has no triangles: {part} has no faces (points and lines are not drawn); fix `mesh` or `group`, or remove the object",
+                o.name
+            );
+        }
         dropped_triangles += dropped;
         let material = resolve_material(
             &at,
@@ -266,7 +296,7 @@ pub fn load(path: PathBuf) -> Result<Scene> {
             &mut materials,
             &mut warnings,
         )?;
-        let motion = build_motion(&src, &at, o)?;
+        let motion = build_motion(&src, &at, o, &mesh)?;
         objects.push(Object {
             name: o.name.clone(),
             mesh,
@@ -275,8 +305,8 @@ pub fn load(path: PathBuf) -> Result<Scene> {
         });
     }
     ensure!(
-        objects.iter().any(|o| !o.mesh.triangles.is_empty()),
-        "{}: the scene is empty (no object with a triangle of non-zero area)",
+        !objects.is_empty(),
+        "{}: the scene is empty: add an [[objects]] table with a mesh",
         path.display()
     );
 
@@ -312,6 +342,9 @@ pub fn load(path: PathBuf) -> Result<Scene> {
         .map(|v| build_view_space(&src.at(v), v.get_ref()))
         .transpose()?;
 
+    // A walk through an animated scene is a walk through its animation; a
+    // static scene's paths may keep any times.
+    let moving = objects.iter().any(|o| !o.motion.is_static());
     let mut paths = Vec::new();
     for p in &parsed.paths {
         let at = src.at(p);
@@ -322,6 +355,13 @@ pub fn load(path: PathBuf) -> Result<Scene> {
             let what = format!("{}: path `{}` key", src.at(k), p.name);
             let k = k.get_ref();
             finite(&what, "time", &[k.time])?;
+            ensure!(
+                !moving || (animation.start..=animation.end).contains(&k.time),
+                "{what}: time {} lies outside the animation [{}, {}] s, where nothing would move: give times within it or extend [animation]",
+                k.time,
+                animation.start,
+                animation.end
+            );
             if let Some(prev) = keys.last() {
                 ensure!(
                     k.time > prev.time,
@@ -368,6 +408,70 @@ fn unique<'a>(
     ensure!(
         !earlier.any(|n| n == name),
         "{at}: {kind} `{name}` is defined twice"
+    );
+    Ok(())
+}
+
+/// What keeps `path` from being read as a file, found without opening it:
+/// opening a FIFO blocks until something writes to it, which may be never,
+/// and "does not exist" would send the user looking for a file that is
+/// there but is a folder or a link to itself.
+fn not_a_file(path: &Path) -> Option<String> {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => None,
+        Ok(m) if m.is_dir() => Some("is a folder, not a file".into()),
+        Ok(m) => Some(format!(
+            "is {}, not a regular file",
+            special_kind(&m.file_type())
+        )),
+        Err(e) if e.raw_os_error() == Some(ELOOP) => Some(
+            "is a symlink loop (following its links leads back to itself); point it at a file"
+                .into(),
+        ),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => match std::fs::read_link(path) {
+            Ok(target) => Some(format!(
+                "is a symlink to {}, which does not exist",
+                target.display()
+            )),
+            Err(_) => Some("does not exist".into()),
+        },
+        Err(e) => Some(format!("cannot be read: {e}")),
+    }
+}
+
+/// The OS error of following too many symbolic links.
+const ELOOP: i32 = if cfg!(target_os = "linux") { 40 } else { 62 };
+
+#[cfg(unix)]
+fn special_kind(t: &std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if t.is_fifo() {
+        "a FIFO (named pipe)"
+    } else if t.is_socket() {
+        "a socket"
+    } else if t.is_block_device() || t.is_char_device() {
+        "a device"
+    } else {
+        "something else"
+    }
+}
+
+#[cfg(not(unix))]
+fn special_kind(_: &std::fs::FileType) -> &'static str {
+    "something else"
+}
+
+/// A point or vector of the scene: finite, and no farther than
+/// [`super::MAX_COORDINATE`] from the origin on any axis, so that what is
+/// computed from it (differences, squared distances, products of those)
+/// stays finite too. `1e38` is a finite `f32`, but a scene placed there
+/// renders nothing and fails later with NaN cameras that name no field.
+fn coordinates(what: &str, field: &str, values: &[f32]) -> Result<()> {
+    finite(what, field, values)?;
+    ensure!(
+        values.iter().all(|v| v.abs() <= super::MAX_COORDINATE),
+        "{what}: `{field}` {values:?} lies beyond ±{:e}, the farthest a coordinate may reach (so that distances between points stay finite): scale the scene down",
+        super::MAX_COORDINATE
     );
     Ok(())
 }
@@ -419,7 +523,7 @@ fn build_material(at: &str, m: &MaterialToml, dir: &Path) -> Result<Material> {
             let reflectance = reflectance(&what, "reflectance", *r)?;
             let texture = texture
                 .as_ref()
-                .map(|t| read_texture(&what, &dir.join(t)))
+                .map(|t| read_texture(&what, "texture", &dir.join(t)))
                 .transpose()?;
             if let Some(t) = &texture {
                 let product = reflectance * t.largest_texel();
@@ -499,8 +603,11 @@ fn build_material(at: &str, m: &MaterialToml, dir: &Path) -> Result<Material> {
 /// A texture multiplies a reflectance, so its texels only need to be
 /// finite and not negative here; the product is checked where the
 /// reflectance is known.
-fn read_texture(what: &str, path: &Path) -> Result<Arc<Texture>> {
-    let tex = crate::image::read_texture(path).with_context(|| format!("{what}: texture"))?;
+fn read_texture(what: &str, field: &str, path: &Path) -> Result<Arc<Texture>> {
+    if let Some(why) = not_a_file(path) {
+        bail!("{what}: `{field}` {} {why}", path.display());
+    }
+    let tex = crate::image::read_texture(path).with_context(|| format!("{what}: `{field}`"))?;
     ensure!(
         tex.texels
             .iter()
@@ -587,14 +694,15 @@ fn resolve_material(
     let texture = match &mtl.diffuse_texture {
         Some(t) => {
             let path = obj.path.parent().unwrap_or(Path::new(".")).join(t);
-            if path.is_file() {
-                Some(read_texture(&what, &path)?)
-            } else {
-                warnings.push(format!(
-                    "{what}: texture {} does not exist: using `Kd` alone",
-                    path.display()
-                ));
-                None
+            match not_a_file(&path) {
+                None => Some(read_texture(&what, "map_Kd", &path)?),
+                Some(why) => {
+                    warnings.push(format!(
+                        "{what}: `map_Kd` texture {} {why}: using `Kd` alone",
+                        path.display()
+                    ));
+                    None
+                }
             }
         }
         None => None,
@@ -640,16 +748,21 @@ fn resolve_material(
     Ok(materials.len() - 1)
 }
 
-fn build_motion(src: &Source, at: &str, o: &ObjectToml) -> Result<Motion> {
+/// The object's keyframes, each checked to keep `mesh` within
+/// [`super::MAX_COORDINATE`]: `scale` can carry a small object out of
+/// range where `translate` and `pivot` are in range. Between keys the
+/// object's points then stay within a few times that bound (translation
+/// and scale are interpolated linearly, rotation keeps lengths).
+fn build_motion(src: &Source, at: &str, o: &ObjectToml, mesh: &Mesh) -> Result<Motion> {
     let what = format!("{at}: object `{}`", o.name);
     let pivot = o.pivot.unwrap_or([0.0; 3]);
-    finite(&what, "pivot", &pivot)?;
+    coordinates(&what, "pivot", &pivot)?;
     let mut keys: Vec<Keyframe> = Vec::new();
     for k in &o.keyframes {
         let kat = format!("{}: object `{}` keyframe", src.at(k), o.name);
         let k = k.get_ref();
         finite(&kat, "time", &[k.time])?;
-        finite(&kat, "translate", &k.translate)?;
+        coordinates(&kat, "translate", &k.translate)?;
         if let Some(prev) = keys.last() {
             ensure!(
                 k.time > prev.time,
@@ -660,7 +773,7 @@ fn build_motion(src: &Source, at: &str, o: &ObjectToml) -> Result<Motion> {
         }
         let rotation = match &k.rotate {
             Some(r) => {
-                finite(&kat, "rotate.axis", &r.axis)?;
+                coordinates(&kat, "rotate.axis", &r.axis)?;
                 finite(&kat, "rotate.degrees", &[r.degrees])?;
                 let axis = Vec3::from(r.axis).normalize_or_zero();
                 ensure!(
@@ -677,14 +790,43 @@ fn build_motion(src: &Source, at: &str, o: &ObjectToml) -> Result<Motion> {
             scale.is_finite() && scale > 0.0,
             "{kat}: `scale` {scale} must be a positive number"
         );
-        keys.push(Keyframe {
+        let key = Keyframe {
             time: k.time,
             translation: k.translate.into(),
             rotation,
             scale,
-        });
+        };
+        let pose = Motion::with_pivot(vec![key], pivot.into()).pose(k.time);
+        if let Some(far) = farthest_corner(mesh, pose) {
+            bail!(
+                "{kat}: at time {} the object reaches {far}, beyond ±{:e}, the farthest a coordinate may reach (so that distances between points stay finite): lower `scale` or `translate`",
+                k.time,
+                super::MAX_COORDINATE
+            );
+        }
+        keys.push(key);
     }
     Ok(Motion::with_pivot(keys, pivot.into()))
+}
+
+/// The world position of a corner of `mesh`'s bounds under `pose` that is
+/// not finite or lies beyond [`super::MAX_COORDINATE`], if any.
+fn farthest_corner(mesh: &Mesh, pose: glam::Affine3A) -> Option<Vec3> {
+    let lo = mesh.positions.iter().fold(Vec3::INFINITY, |a, &p| a.min(p));
+    let hi = mesh
+        .positions
+        .iter()
+        .fold(Vec3::NEG_INFINITY, |a, &p| a.max(p));
+    (0..8)
+        .map(|i| {
+            let pick = |bit: u32, l: f32, h: f32| if i & bit == 0 { l } else { h };
+            pose.transform_point3(Vec3::new(
+                pick(1, lo.x, hi.x),
+                pick(2, lo.y, hi.y),
+                pick(4, lo.z, hi.z),
+            ))
+        })
+        .find(|w| !w.is_finite() || w.abs().max_element() > super::MAX_COORDINATE)
 }
 
 fn build_light(at: &str, l: &LightToml) -> Result<Light> {
@@ -694,7 +836,7 @@ fn build_light(at: &str, l: &LightToml) -> Result<Light> {
             intensity,
         } => {
             let what = format!("{at}: point light");
-            finite(&what, "position", position)?;
+            coordinates(&what, "position", position)?;
             finite(&what, "intensity", intensity)?;
             ensure!(
                 intensity.iter().all(|&c| c >= 0.0),
@@ -711,7 +853,7 @@ fn build_light(at: &str, l: &LightToml) -> Result<Light> {
             angular_diameter,
         } => {
             let what = format!("{at}: sun");
-            finite(&what, "direction", direction)?;
+            coordinates(&what, "direction", direction)?;
             finite(&what, "radiance", radiance)?;
             let d = Vec3::from(*direction).normalize_or_zero();
             ensure!(
@@ -744,15 +886,15 @@ fn pose(
     up: V3,
     vfov: f32,
 ) -> Result<(Vec3, Vec3)> {
-    finite(what, "position", &position)?;
-    finite(what, "up", &up)?;
+    coordinates(what, "position", &position)?;
+    coordinates(what, "up", &up)?;
     let dir = match (look_at, direction) {
         (Some(t), None) => {
-            finite(what, "look_at", &t)?;
+            coordinates(what, "look_at", &t)?;
             Vec3::from(t) - Vec3::from(position)
         }
         (None, Some(d)) => {
-            finite(what, "direction", &d)?;
+            coordinates(what, "direction", &d)?;
             Vec3::from(d)
         }
         _ => bail!("{what}: give exactly one of `look_at` and `direction`"),
@@ -778,8 +920,8 @@ fn build_view_space(at: &str, v: &ViewSpaceToml) -> Result<ViewSpace> {
     let what = format!("{at}: [view_space]");
     Ok(match v {
         ViewSpaceToml::Segment { a, b } => {
-            finite(&what, "a", a)?;
-            finite(&what, "b", b)?;
+            coordinates(&what, "a", a)?;
+            coordinates(&what, "b", b)?;
             ensure!(a != b, "{what}: segment end points are equal");
             ViewSpace::Segment {
                 a: (*a).into(),
@@ -787,8 +929,8 @@ fn build_view_space(at: &str, v: &ViewSpaceToml) -> Result<ViewSpace> {
             }
         }
         ViewSpaceToml::Rectangle { min, max } | ViewSpaceToml::Box { min, max } => {
-            finite(&what, "min", min)?;
-            finite(&what, "max", max)?;
+            coordinates(&what, "min", min)?;
+            coordinates(&what, "max", max)?;
             let (lo, hi) = (Vec3::from(*min), Vec3::from(*max));
             ensure!(
                 lo.cmple(hi).all(),
@@ -826,12 +968,8 @@ struct ObjFile {
 impl ObjFile {
     /// A missing MTL file is a warning (the objects fall back to the
     /// default material); one that does not parse is an error naming it.
+    /// The caller has checked that `path` is a regular file.
     fn read(path: &Path, warnings: &mut Vec<String>) -> Result<Self> {
-        ensure!(
-            path.is_file(),
-            "mesh file {} does not exist",
-            path.display()
-        );
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read mesh {}", path.display()))?;
         check_obj(path, &text)?;
@@ -847,13 +985,20 @@ impl ObjFile {
         let mtl_files = std::cell::RefCell::new(HashMap::new());
         let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &opts, |name| {
             let mtl = dir.join(name);
-            let Ok(text) = std::fs::read_to_string(&mtl) else {
-                mtl_warnings.borrow_mut().push(format!(
-                    "{}: MTL file {} cannot be read: its materials fall back to the default",
-                    path.display(),
-                    mtl.display()
-                ));
-                return Ok(Default::default());
+            let read = match not_a_file(&mtl) {
+                Some(why) => Err(why),
+                None => std::fs::read_to_string(&mtl).map_err(|e| format!("cannot be read: {e}")),
+            };
+            let text = match read {
+                Ok(text) => text,
+                Err(why) => {
+                    mtl_warnings.borrow_mut().push(format!(
+                        "{}: MTL file {} {why}: its materials fall back to the default",
+                        path.display(),
+                        mtl.display()
+                    ));
+                    return Ok(Default::default());
+                }
             };
             let (text, w) = match prepare_mtl(&mtl, &text) {
                 Ok(prepared) => prepared,
@@ -920,6 +1065,14 @@ impl ObjFile {
                 self.path.display(),
                 m.name
             );
+            if let Some(c) = p.iter().find(|c| c.abs() > super::MAX_COORDINATE) {
+                bail!(
+                    "{}: group `{}` has a vertex coordinate {c:e} beyond ±{:e}, the farthest a coordinate may reach (so that distances between points stay finite): scale the mesh down",
+                    self.path.display(),
+                    m.name,
+                    super::MAX_COORDINATE
+                );
+            }
             mesh.positions
                 .extend(p.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])));
             if with_uvs {
@@ -1054,9 +1207,38 @@ vfov = 40
                 "mesh = \"missing.obj\"",
                 &["missing.obj", "does not exist"],
             ),
-            ("group = \"quad\"", "group = \"sliver\"", &["empty"]),
+            (
+                "group = \"quad\"",
+                "group = \"sliver\"",
+                &["object `quad` has no triangles", "sliver", "zero area"],
+            ),
             ("group = \"quad\"", "group = \"cube\"", &["cube", "quad"]),
             ("vfov = 40", "vfov = 400", &["vfov", "main"]),
+            (
+                "translate = [1, 0, 0]",
+                "translate = [1e38, 0, 0]",
+                &["object `quad` keyframe", "`translate`", "beyond"],
+            ),
+            (
+                "translate = [1, 0, 0]",
+                "translate = [1, 0, 0]\nscale = 1e38",
+                &["object `quad` keyframe", "at time 1", "`scale`"],
+            ),
+            (
+                "pivot = [0.5, 0.5, 0]",
+                "pivot = [0.5, -1e38, 0]",
+                &["object `quad`", "`pivot`", "beyond"],
+            ),
+            (
+                "position = [0.5, 0.5, -3]",
+                "position = [0.5, 0.5, -3e38]",
+                &["camera `main`", "`position`", "beyond"],
+            ),
+            (
+                "look_at = [0.5, 0.5, 0]",
+                "look_at = [3e38, 0.5, 0]",
+                &["camera `main`", "`look_at`", "beyond"],
+            ),
             ("fps = 30", "fps = 30\nspeed = 2", &["speed"]),
             ("type = \"diffuse\"", "type = \"velvet\"", &["velvet"]),
             (
@@ -1076,6 +1258,29 @@ vfov = 40
                 assert!(msg.contains(n), "`{n}` missing from: {msg}");
             }
         }
+    }
+
+    /// A walk path through an animated scene stays within its animation
+    /// (beyond it nothing would move); a static scene's paths keep any
+    /// times.
+    #[test]
+    fn path_keys_of_an_animated_scene_lie_within_the_animation() {
+        let path = "\n[[paths]]\nname = \"walk\"\n[[paths.keys]]\ntime = 0\nposition = [0, 0, -3]\ndirection = [0, 0, 1]\nvfov = 40\n[[paths.keys]]\ntime = 5\nposition = [1, 0, -3]\ndirection = [0, 0, 1]\nvfov = 40\n";
+        let msg = load_err(&format!("{GOOD}{path}"));
+        assert!(
+            msg.contains("path `walk` key")
+                && msg.contains("time 5 lies outside the animation [0, 1] s"),
+            "{msg}"
+        );
+        let still = GOOD.replace(
+            "translate = [1, 0, 0]\nrotate = { axis = [0, 0, 1], degrees = 90 }\n",
+            "",
+        );
+        assert_ne!(still, GOOD);
+        let (_d, p) = scene_dir(&format!("{still}{path}"));
+        let s = Scene::load(p).unwrap_or_else(|e| panic!("{e:#}"));
+        assert!(s.is_static());
+        assert!(s.check_time(-1.0).is_ok() && s.check_time(f32::NAN).is_err());
     }
 
     #[test]

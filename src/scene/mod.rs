@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, ensure, Result};
 use glam::{Affine3A, Vec2, Vec3};
 
 use crate::camera::{Camera, Projection};
@@ -21,6 +21,13 @@ mod motion;
 mod wavefront;
 
 pub use motion::{Keyframe, Motion};
+
+/// The farthest from the origin, on any axis, that a scene's points,
+/// cameras and lights may lie (in scene units). Far beyond any scene's
+/// size (the bundled scenes reach 1e7), and far enough below `f32::MAX`
+/// (3.4e38) that differences of points, their squared lengths and
+/// products of those stay finite.
+pub const MAX_COORDINATE: f32 = 1e15;
 
 /// A validated scene.
 #[derive(Clone, Debug)]
@@ -371,7 +378,29 @@ impl Scene {
         load::load(path.into())
     }
 
-    /// Every object's object-to-world transform at time `t`, in object order.
+    /// Checks a time given from outside (a command's `--time`, a C call, a
+    /// frame to synthesize): finite and, for an animated scene, within the
+    /// animation. Outside it [`Scene::at`] holds the end poses and a bake
+    /// has no images, so such a time would show another time's scene under
+    /// its own name. A static scene looks the same at every time, and its
+    /// walk paths' keys (camera times) may span any range, so every finite
+    /// time is one of its times.
+    pub fn check_time(&self, t: f32) -> Result<()> {
+        ensure!(t.is_finite(), "time {t} is not a number");
+        let a = self.animation;
+        ensure!(
+            self.is_static() || (a.start..=a.end).contains(&t),
+            "time {t} s lies outside the animation of {}, [{}, {}] s: give a time in that range",
+            self.source.display(),
+            a.start,
+            a.end
+        );
+        Ok(())
+    }
+
+    /// Every object's object-to-world transform at time `t`, in object
+    /// order; before the animation's keys the first pose, after them the
+    /// last (times from outside are checked by [`Scene::check_time`]).
     pub fn at(&self, t: f32) -> Vec<Affine3A> {
         self.objects.iter().map(|o| o.motion.pose(t)).collect()
     }

@@ -404,7 +404,7 @@ impl<'a> Synthesizer<'a> {
         opts: &Options,
         image: bool,
     ) -> Result<(Option<RangeImage>, FrameStats)> {
-        ensure!(t.is_finite(), "frame time {t} is not finite");
+        self.scene.check_time(t)?;
         ensure!(
             opts.tolerance > 0.0 && opts.tolerance < 1.0,
             "depth tolerance {} must lie in (0, 1)",

@@ -274,8 +274,8 @@ fn subpixels_show_each_surface_by_its_share_where_a_silhouette_crosses_a_pixel()
         };
         let (frame, stats) = synth.frame(&camera, 0.0, &opts).unwrap();
         assert_eq!(stats.holes, 0, "{supersample}: fill both leaves no hole");
-        let e = metrics::compare(&frame.radiance, &reference.radiance, Some(&edge)).unwrap();
-        let all = metrics::compare(&frame.radiance, &reference.radiance, None).unwrap();
+        let e = metrics::compare(&frame, &reference, Some(&edge)).unwrap();
+        let all = metrics::compare(&frame, &reference, None).unwrap();
         eprintln!(
             "{supersample}x{supersample} subpixels: edge LRMS {:.4}, whole frame {:.4}",
             e.lrms, all.lrms
@@ -308,7 +308,7 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
     let (both, stats) = synth.frame(&camera, 0.0, &Options::default()).unwrap();
     assert_eq!(stats.images.len(), 2, "both views");
     assert_eq!(stats.holes, 0, "fill both leaves no hole");
-    let all = metrics::compare(&both.radiance, &reference.radiance, None).unwrap();
+    let all = metrics::compare(&both, &reference, None).unwrap();
     // Inside surfaces (pixels whose neighbours show the same object): the
     // shading carried over from the bases, within the noise of their 16
     // samples per pixel. Other edges are resampled from one or two base
@@ -322,7 +322,7 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
             (-1..=1).all(|dy| (-1..=1).all(|dx| id(x + dx, y + dy) == id(x, y)))
         })
         .collect();
-    let e = metrics::compare(&both.radiance, &reference.radiance, Some(&inside)).unwrap();
+    let e = metrics::compare(&both, &reference, Some(&inside)).unwrap();
     eprintln!(
         "LRMS {:.4} (all pixels {:.4}), bias {:+.4}",
         e.lrms, all.lrms, all.bias
@@ -336,7 +336,7 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
         ..Options::default()
     };
     let (plain, plain_stats) = synth.frame(&camera, 0.0, &untraced).unwrap();
-    let plain = metrics::compare(&plain.radiance, &reference.radiance, None).unwrap();
+    let plain = metrics::compare(&plain, &reference, None).unwrap();
     eprintln!(
         "whole frame: LRMS {:.4} with {} pixels at the light traced, {:.4} without",
         all.lrms, stats.light_pixels, plain.lrms
@@ -353,8 +353,8 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
     };
     let (covered, covered_stats) = synth.frame(&camera, 0.0, &cover).unwrap();
     assert_eq!(covered_stats.holes, 0, "cover: fill both leaves no hole");
-    let c = metrics::compare(&covered.radiance, &reference.radiance, Some(&inside)).unwrap();
-    let c_all = metrics::compare(&covered.radiance, &reference.radiance, None).unwrap();
+    let c = metrics::compare(&covered, &reference, Some(&inside)).unwrap();
+    let c_all = metrics::compare(&covered, &reference, None).unwrap();
     eprintln!(
         "cover: LRMS {:.4} (all pixels {:.4}), bias {:+.4}",
         c.lrms, c_all.lrms, c_all.bias
@@ -377,8 +377,8 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
         first_stats.hidden > 0,
         "nearest: nothing hidden was left out"
     );
-    let n = metrics::compare(&first.radiance, &reference.radiance, Some(&inside)).unwrap();
-    let n_all = metrics::compare(&first.radiance, &reference.radiance, None).unwrap();
+    let n = metrics::compare(&first, &reference, Some(&inside)).unwrap();
+    let n_all = metrics::compare(&first, &reference, None).unwrap();
     eprintln!(
         "nearest: LRMS {:.4} (all pixels {:.4}), bias {:+.4}, {} base pixels left out",
         n.lrms, n_all.lrms, n_all.bias, first_stats.hidden
@@ -414,7 +414,7 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
 
 /// Luminance error of `frame` against `reference` over `mask`.
 fn error(frame: &RangeImage, reference: &RangeImage, mask: &[bool]) -> f64 {
-    metrics::compare(&frame.radiance, &reference.radiance, Some(mask))
+    metrics::compare(frame, reference, Some(mask))
         .unwrap()
         .lrms
 }
@@ -730,8 +730,7 @@ fn a_walk_writes_every_frame_an_animation_and_a_summary() {
         let reference =
             rangewalk::image::read_exr(out.join(format!("reference-{i:04}.exr"))).unwrap();
         assert_eq!(reference.meta.time, frame.meta.time);
-        let e =
-            rangewalk::eval::metrics::compare(&frame.radiance, &reference.radiance, None).unwrap();
+        let e = rangewalk::eval::metrics::compare(&frame, &reference, None).unwrap();
         assert!((c["lrms"].as_f64().unwrap() - e.lrms).abs() <= 1e-9 * e.lrms.max(1.0));
         assert!((c["bias"].as_f64().unwrap() - e.bias).abs() <= 1e-9);
     }

@@ -26,6 +26,7 @@ mod embree;
 pub mod eval;
 pub mod export;
 pub mod image;
+pub mod output;
 pub mod plan;
 pub mod radiosity;
 pub mod ray;

@@ -338,6 +338,7 @@ fn run(cli: Cli) -> Result<()> {
             out,
         } => {
             image::check_output_dir("--out", &out)?;
+            rangewalk::output::check_only(&out, &rangewalk::export::mitsuba::CONTENTS)?;
             let s = load(&scene)?;
             view.check_time(&s)?;
             let camera = view.camera(&s)?;

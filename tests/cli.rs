@@ -166,7 +166,7 @@ fn every_command_checks_its_outputs_first() {
     // Output folders are made with their parents; one under a file cannot be.
     let missing = format!("{file}/dir/out");
     let missing = missing.as_str();
-    let blocked = "a-file is not a folder";
+    let blocked = "a-file is a file, not a folder";
     let gone = "folder /nonexistent/dir does not exist";
     let exr = "/nonexistent/dir/x.exr";
     let cases: Vec<(Vec<&str>, &str)> = vec![

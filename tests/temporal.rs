@@ -256,7 +256,11 @@ mod bake {
         let scene = cornell();
         let series = run(&scene, 0.0, |_, _| Vec3::ONE);
         let e = save(&dir, &scene, &Simplified::whole(&scene), &series).unwrap_err();
-        assert!(format!("{e:#}").contains("not a bake directory"), "{e:#}");
+        assert!(
+            format!("{e:#}").contains("refusing to replace")
+                && format!("{e:#}").contains("notes.txt"),
+            "{e:#}"
+        );
         assert!(dir.join("notes.txt").exists());
     }
 

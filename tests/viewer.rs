@@ -376,3 +376,56 @@ fn bad_input_is_refused_with_its_reason() {
         "{e}"
     );
 }
+
+#[test]
+fn a_recording_replaces_only_a_recording() {
+    let x = Xvfb::start();
+    let root = tempfile::tempdir().unwrap();
+    let frames = |dir: &Path| -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    };
+    let record = |dir: &Path, n: &str| {
+        rangewalk(
+            &[
+                "view",
+                bake().to_str().unwrap(),
+                "--path",
+                "walk",
+                "--frames",
+                n,
+                "--size",
+                "32x24",
+                "--record",
+                dir.to_str().unwrap(),
+            ],
+            Some(&x.display),
+        )
+    };
+    let out = root.path().join("rec");
+    ok(&record(&out, "3"), "recording 3 frames");
+    assert_eq!(
+        frames(&out),
+        ["frame-0000.png", "frame-0001.png", "frame-0002.png"]
+    );
+    ok(&record(&out, "2"), "recording 2 frames over them");
+    assert_eq!(frames(&out), ["frame-0000.png", "frame-0001.png"]);
+    assert_eq!(frames(root.path()), ["rec"]);
+
+    // A folder of the user's is refused before the window opens, and kept.
+    let mine = root.path().join("mine");
+    std::fs::create_dir(&mine).unwrap();
+    std::fs::write(mine.join("frame-0000.png"), "").unwrap();
+    std::fs::write(mine.join("holiday.jpg"), "").unwrap();
+    let o = record(&mine, "2");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("refusing to replace") && err.contains("holiday.jpg"),
+        "{err}"
+    );
+    assert_eq!(frames(&mine), ["frame-0000.png", "holiday.jpg"]);
+}

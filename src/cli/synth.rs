@@ -235,6 +235,7 @@ pub fn walk(args: &WalkArgs) -> Result<()> {
     let options = args.synth.options(args.size)?;
     let budget = args.synth.base_memory_bytes()?;
     image::check_output_dir("--out", &args.out)?;
+    rangewalk::output::check_only(&args.out, &walk::CONTENTS)?;
     let (scene, bake) = args.synth.open(&args.bake)?;
     let mut synth = Synthesizer::new(&scene, &bake, budget);
     let settings = WalkSettings {

@@ -5,7 +5,9 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
+
+use crate::output::{check_only, Contents};
 
 /// The folder of cached references inside an output folder.
 pub const REFERENCE_DIR: &str = "reference";
@@ -97,34 +99,22 @@ impl Staging {
     }
 }
 
+/// What an experiment writes into its folder: its tables and plots, and
+/// the cache folders.
+const CONTENTS: Contents = Contents {
+    what: "an experiment",
+    owns: |name, is_dir| {
+        if is_dir {
+            CACHES.contains(&name)
+        } else {
+            FILES.contains(&name) || name.ends_with(".png")
+        }
+    },
+};
+
 /// Fails unless `dir` is absent or holds only what an experiment writes.
 fn check_ours(dir: &Path) -> Result<()> {
-    if !dir.exists() {
-        return Ok(());
-    }
-    if !dir.is_dir() {
-        bail!(
-            "{} exists and is not a folder; choose another --out",
-            dir.display()
-        );
-    }
-    for entry in entries(dir)? {
-        let name = entry.file_name().unwrap_or_default().to_string_lossy();
-        let ours = if entry.is_dir() {
-            is_cache(&entry)
-        } else {
-            FILES.contains(&name.as_ref()) || name.ends_with(".png")
-        };
-        if !ours {
-            bail!(
-                "refusing to replace {}: it holds {}, which an experiment does not write; \
-                 choose another --out",
-                dir.display(),
-                entry.display()
-            );
-        }
-    }
-    Ok(())
+    check_only(dir, &CONTENTS)
 }
 
 /// Whether `entry` is one of the cache folders.

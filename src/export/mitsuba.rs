@@ -34,13 +34,27 @@ use glam::Vec3;
 
 use crate::camera::{Camera, Projection};
 use crate::image::Texture;
+use crate::output::{numbered, Contents, Folder};
 use crate::scene::{Bsdf, GlossyModel, Light, Material, Scene};
 
 /// How many scene radii away the sun's disk is placed.
 const SUN_DISTANCE_RADII: f32 = 1e4;
 
+/// What an export writes into its folder.
+pub const CONTENTS: Contents = Contents {
+    what: "a Mitsuba export",
+    owns: |name, is_dir| {
+        !is_dir
+            && (name == "scene.xml"
+                || numbered(name, "mesh_", &["obj"])
+                || numbered(name, "texture_", &["pfm"]))
+    },
+};
+
 /// Writes `<dir>/scene.xml` and its meshes (and textures) for `scene` at
-/// `time`, seen by `camera`, rendered with `spp` samples per pixel.
+/// `time`, seen by `camera`, rendered with `spp` samples per pixel. The
+/// folder is replaced whole, so its scene and meshes are always of one
+/// export.
 pub fn export(
     scene: &Scene,
     time: f32,
@@ -55,7 +69,21 @@ pub fn export(
             camera.projection.name()
         );
     };
-    fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let folder = Folder::begin(dir, CONTENTS)?;
+    write_scene(scene, time, camera, vfov_deg, spp, max_depth, folder.path())?;
+    folder.finish()?;
+    Ok(())
+}
+
+fn write_scene(
+    scene: &Scene,
+    time: f32,
+    camera: &Camera,
+    vfov_deg: f32,
+    spp: u32,
+    max_depth: Option<u32>,
+    dir: &Path,
+) -> Result<()> {
     let mut xml = String::new();
     let w = &mut xml;
     writeln!(w, r#"<?xml version="1.0" encoding="utf-8"?>"#)?;

@@ -17,27 +17,26 @@
 //! under the final name. Every error names the file.
 
 use std::path::Path;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::{ensure, Context, Result};
 use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::camera::Camera;
+use crate::output::write_with as write_atomically;
 
 mod color;
 pub mod exr_io;
 #[cfg(feature = "oiio")]
 #[allow(unsafe_code)]
 mod oiio;
-mod output;
 mod planes;
 pub mod png_io;
 pub mod rgbe;
 mod texture;
 
+pub use crate::output::{check_output, check_output_dir, OutputKind};
 pub use color::tonemap_srgb8;
-pub use output::{check_output, check_output_dir, OutputKind};
 pub use texture::Texture;
 
 /// Object/primitive id of a pixel whose ray hit nothing.
@@ -378,32 +377,4 @@ fn rgb_planes(width: u32, height: u32, radiance: &[Vec3]) -> Result<planes::Plan
         ],
         attributes: Vec::new(),
     })
-}
-
-/// Runs `write` on a fresh hidden file in the target's directory and renames
-/// it over `target` on success; removes it on failure. Every writer names
-/// its format explicitly, so the temporary name needs no extension.
-fn write_atomically(target: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let name = target
-        .file_name()
-        .with_context(|| format!("writing {}: path names no file", target.display()))?;
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(name);
-    tmp_name.push(format!(
-        ".{}-{}.partial",
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    ));
-    let tmp = target.with_file_name(tmp_name);
-    let result = write(&tmp).and_then(|()| {
-        std::fs::rename(&tmp, target)
-            .with_context(|| format!("cannot rename {} to it", tmp.display()))
-    });
-    if result.is_err() {
-        // The temporary may not exist (the write failed before creating
-        // it); the error that matters is the one being returned.
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.with_context(|| format!("writing {}", target.display()))
 }

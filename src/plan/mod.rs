@@ -454,18 +454,7 @@ impl Plan {
     /// so an interrupted write never leaves a partial plan under `path`.
     pub fn save(&self, path: &Path) -> Result<()> {
         let json = serde_json::to_string_pretty(self).context("serializing the plan")?;
-        let name = path
-            .file_name()
-            .with_context(|| format!("{}: not a file name", path.display()))?;
-        let mut tmp_name = std::ffi::OsString::from(".");
-        tmp_name.push(name);
-        tmp_name.push(format!(".tmp-{}", std::process::id()));
-        let tmp = path.with_file_name(tmp_name);
-        std::fs::write(&tmp, json + "\n").with_context(|| format!("writing {}", tmp.display()))?;
-        std::fs::rename(&tmp, path).or_else(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            Err(e).with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
-        })
+        crate::output::write_file(path, json + "\n")
     }
 
     /// Reads a plan written by [`Plan::save`].

@@ -16,6 +16,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::checksum::{fnv1a64, hex};
+use crate::output::{Contents, Folder};
 use crate::scene::hash::ContentHash;
 use crate::scene::Scene;
 
@@ -31,6 +32,14 @@ const PATCHES: &str = "patches.bin";
 const RECORDS: &str = "records.bin";
 const IRRADIANCE: &str = "irradiance.bin";
 const PRUNED: &str = "pruned.bin";
+/// What a store holds: it is replaced whole, and only while it holds
+/// nothing else.
+const CONTENTS: Contents = Contents {
+    what: "a radiosity store",
+    owns: |name, is_dir| {
+        !is_dir && [MANIFEST, PATCHES, RECORDS, IRRADIANCE, PRUNED].contains(&name)
+    },
+};
 /// Bytes per stored element.
 const PATCH_BYTES: usize = 4 * (1 + 9 + 3 + 3 + 3 + 3 + 1);
 const RECORD_BYTES: usize = 4 * (1 + 3 + 3);
@@ -141,18 +150,7 @@ pub fn save(dir: &Path, scene: &Scene, simplified: &Simplified, series: &TimeSer
             s.direct.len()
         );
     }
-    if dir.exists() && !is_bake_or_empty(dir)? {
-        bail!(
-            "{} exists and is not a bake directory (no {MANIFEST}); refusing to replace it",
-            dir.display()
-        );
-    }
-    let partial = partial_path(dir);
-    if partial.exists() {
-        fs::remove_dir_all(&partial)
-            .with_context(|| format!("removing the unfinished {}", partial.display()))?;
-    }
-    fs::create_dir_all(&partial).with_context(|| format!("creating {}", partial.display()))?;
+    let folder = Folder::begin(dir, CONTENTS)?;
 
     let patches = encode_patches(&simplified.patches);
     let records = encode_records(&simplified.records);
@@ -187,15 +185,11 @@ pub fn save(dir: &Path, scene: &Scene, simplified: &Simplified, series: &TimeSer
         (PRUNED, &pruned),
         (MANIFEST, text.as_bytes()),
     ] {
-        let path = partial.join(name);
+        let path = folder.path().join(name);
         fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
     }
-    if dir.exists() {
-        fs::remove_dir_all(dir)
-            .with_context(|| format!("removing the earlier bake {}", dir.display()))?;
-    }
-    fs::rename(&partial, dir)
-        .with_context(|| format!("renaming {} to {}", partial.display(), dir.display()))
+    folder.finish()?;
+    Ok(())
 }
 
 /// Reads back what [`save`] wrote, identical to what was saved.
@@ -389,14 +383,6 @@ pub fn partial_path(dir: &Path) -> PathBuf {
     let mut name = dir.file_name().unwrap_or_default().to_os_string();
     name.push(".partial");
     dir.with_file_name(name)
-}
-
-fn is_bake_or_empty(dir: &Path) -> Result<bool> {
-    if dir.join(MANIFEST).is_file() {
-        return Ok(true);
-    }
-    let mut entries = fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))?;
-    Ok(entries.next().is_none())
 }
 
 /// Reads a binary file and checks it against its manifest entry: length,

@@ -7,12 +7,13 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{bail, ensure, Context, Result};
+use anyhow::{ensure, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{view_space_warning, FrameStats, Options, Synthesizer};
 use crate::camera::Camera;
 use crate::image::{self, RangeImage};
+use crate::output::{numbered, Contents, Folder};
 
 /// What a walk writes and how.
 #[derive(Clone, Debug)]
@@ -149,7 +150,8 @@ pub fn walk(
             warnings.push(w);
         }
     }
-    let staging = staging_dir(out)?;
+    let folder = Folder::begin(out, CONTENTS)?;
+    let staging = folder.path().to_path_buf();
     let bar = ProgressBar::new(times.len() as u64).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {elapsed} ({eta} left) {msg}")
             .expect("progress template is valid"),
@@ -221,33 +223,21 @@ pub fn walk(
     let text = serde_json::to_string_pretty(&summary).context("encoding the walk summary")?;
     fs::write(staging.join("summary.json"), text)
         .with_context(|| format!("writing {}", staging.join("summary.json").display()))?;
-    if out.exists() {
-        fs::remove_dir_all(out).with_context(|| format!("replacing {}", out.display()))?;
-    }
-    fs::rename(&staging, out)
-        .with_context(|| format!("renaming {} to {}", staging.display(), out.display()))?;
-    summary.out = out.to_path_buf();
+    summary.out = folder.finish()?;
     Ok(summary)
 }
 
-/// A fresh `<out>.partial` beside `out`.
-pub fn staging_dir(out: &Path) -> Result<PathBuf> {
-    let name = out
-        .file_name()
-        .with_context(|| format!("{}: names no folder", out.display()))?;
-    let mut partial = name.to_os_string();
-    partial.push(".partial");
-    let staging = out.with_file_name(partial);
-    if staging.exists() {
-        fs::remove_dir_all(&staging)
-            .with_context(|| format!("removing an earlier {}", staging.display()))?;
-    }
-    if out.exists() && !out.is_dir() {
-        bail!("{} exists and is not a folder", out.display());
-    }
-    fs::create_dir_all(&staging).with_context(|| format!("creating {}", staging.display()))?;
-    Ok(staging)
-}
+/// What a walk writes into its folder: frames, their references,
+/// `walk.png`, `contact.png` and `summary.json`.
+pub const CONTENTS: Contents = Contents {
+    what: "a walk",
+    owns: |name, is_dir| {
+        !is_dir
+            && (matches!(name, "walk.png" | "contact.png" | "summary.json")
+                || numbered(name, "frame-", &["exr", "png"])
+                || numbered(name, "reference-", &["exr"]))
+    },
+};
 
 /// An animated PNG of the previews, playing at `fps`.
 fn write_apng(path: &Path, width: u32, height: u32, fps: f32, frames: &[Vec<u8>]) -> Result<()> {

@@ -5,7 +5,7 @@
 //! (1/fps) after the last, so a run can be replayed and compared.
 
 use std::collections::VecDeque;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -17,8 +17,9 @@ use super::script::Script;
 use super::walker::{Input, Walker};
 use super::window::{self, Window};
 use crate::image::png_io;
+use crate::output::{numbered, Contents, Folder};
 use crate::scene::{CameraDesc, Scene, WalkPath};
-use crate::synth::walk::{frame_times, staging_dir};
+use crate::synth::walk::frame_times;
 use crate::synth::{Blend, Filter, Options};
 
 /// How the viewer makes frames while the view or the time changes.
@@ -156,6 +157,7 @@ pub fn run(args: &ViewSettings) -> Result<ViewSummary> {
     }
     if let Some(dir) = &args.record {
         crate::image::check_output_dir("--record", dir)?;
+        crate::output::check_only(dir, &RECORDING)?;
     }
     let (scene, bake) = crate::synth::open(&args.bake, args.scene.as_deref())?;
     let scene = Arc::new(scene);
@@ -199,7 +201,11 @@ pub fn run(args: &ViewSettings) -> Result<ViewSummary> {
         options.fill,
         options.time_interp,
     )?;
-    let record = args.record.as_deref().map(staging_dir).transpose()?;
+    let record = args
+        .record
+        .as_deref()
+        .map(|dir| Folder::begin(dir, RECORDING))
+        .transpose()?;
     let title = format!("rangewalk view {}: {}", args.bake.display(), window::KEYS);
     let window = Window::open(&title, args.size.0, args.size.1)?;
     let renderer = Renderer::start(
@@ -208,7 +214,11 @@ pub fn run(args: &ViewSettings) -> Result<ViewSummary> {
         args.base_memory_bytes,
         args.exposure,
     )?;
-    let mut screen = Screen::new(window, args.size, record);
+    let mut screen = Screen::new(
+        window,
+        args.size,
+        record.as_ref().map(|f| f.path().to_path_buf()),
+    );
     let mut session = Session {
         renderer,
         walker,
@@ -228,8 +238,8 @@ pub fn run(args: &ViewSettings) -> Result<ViewSummary> {
             &overlay::unpack(&screen.on_screen),
         )?;
     }
-    if let (Some(dir), Some(staged)) = (&args.record, &screen.record) {
-        finish_record(staged, dir)?;
+    if let Some(folder) = record {
+        folder.finish()?;
     }
     let shown_fps = match screen.first_shown {
         Some(first) if screen.count > 1 => {
@@ -544,11 +554,8 @@ fn default_speed(scene: &Scene) -> f32 {
     }
 }
 
-/// Renames the recording's staging folder to `dir` once every frame is in.
-fn finish_record(staged: &Path, dir: &Path) -> Result<()> {
-    if dir.exists() {
-        std::fs::remove_dir_all(dir).with_context(|| format!("replacing {}", dir.display()))?;
-    }
-    std::fs::rename(staged, dir)
-        .with_context(|| format!("renaming {} to {}", staged.display(), dir.display()))
-}
+/// What `--record` writes into its folder: the frames shown.
+const RECORDING: Contents = Contents {
+    what: "a recording",
+    owns: |name, is_dir| !is_dir && numbered(name, "frame-", &["png"]),
+};

@@ -414,9 +414,7 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
 
 /// Luminance error of `frame` against `reference` over `mask`.
 fn error(frame: &RangeImage, reference: &RangeImage, mask: &[bool]) -> f64 {
-    metrics::compare(frame, reference, Some(mask))
-        .unwrap()
-        .lrms
+    metrics::compare(frame, reference, Some(mask)).unwrap().lrms
 }
 
 #[test]

@@ -166,8 +166,10 @@ static void limits_and_outputs(rw_scene *scene, rw_bake *bake, const rw_view *vi
     struct stat st;
     CHECK(stat(proc, &st) != 0);
 
-    /* A full disk, then one with room for a few files only: either way the
-     * error names a file under the bake and nothing half written remains. */
+    /* A full disk, then ones with room for a few pages only (the images
+     * are a page each, no radiosity store is written): whichever file the
+     * space runs out in, the error names a file under the bake and nothing
+     * half written remains. */
     const char *full = getenv("RW_FULL_DIR");
     CHECK(full != NULL && *full);
     if (!full || !*full) {
@@ -176,9 +178,11 @@ static void limits_and_outputs(rw_scene *scene, rw_bake *bake, const rw_view *vi
     }
     char dir[1024];
     snprintf(dir, sizeof dir, "%s/bake", full);
-    for (unsigned long long leave = 0; leave <= 12 * 1024; leave += 12 * 1024) {
+    rw_bake_options traced = *tiny;
+    traced.indirect = RW_INDIRECT_PATH;
+    for (unsigned long long leave = 0; leave <= 24 * 1024; leave += 4 * 1024) {
         CHECK(fill_disk(full, leave) == 0);
-        EXPECT(rw_bake_run(scene, tiny, dir, NULL, NULL), RW_IO, dir);
+        EXPECT(rw_bake_run(scene, &traced, dir, NULL, NULL), RW_IO, dir);
         CHECK(strstr(last_error(), "No space left") != NULL);
         CHECK(nothing_half_written(full));
         rw_bake *opened = NULL;

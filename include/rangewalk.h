@@ -220,10 +220,12 @@ typedef struct {
   float tolerance;
   // Farthest a background fill carries a value, in pixels (at most 65535).
   uint32_t fill_reach;
-  // Light samples per pixel when re-shading (at least 1).
+  // Light samples per pixel when re-shading, 1 to 256 (each is three
+  // shadow rays a pixel).
   uint32_t reshade_samples;
-  // Rays per side of a pixel at or beside a light; 0 keeps lights as
-  // reprojected.
+  // Rays per side of a pixel at or beside a light, 0 to 32 (32² rays
+  // resolve a pixel's share of a light to a thousandth); 0 keeps lights
+  // as reprojected.
   uint32_t light_rays;
   uint64_t seed;
   // Memory for the bases each synthesizing thread keeps, in MiB.

@@ -13,6 +13,7 @@
 #![deny(clippy::undocumented_unsafe_blocks)]
 
 pub mod accel;
+pub mod alloc;
 pub mod bake;
 pub mod bsdf;
 pub mod camera;

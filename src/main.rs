@@ -116,7 +116,9 @@ enum Command {
     /// and turn, time plays; or play a path or an input script.
     View(cli::view::ViewArgs),
     /// Error of range images against a reference range image: LRMS and
-    /// bias of luminance (the paper's measure).
+    /// bias of luminance (the paper's measure). Each image must have the
+    /// reference's size, projection and camera (its pixels must look where
+    /// the reference's do); another scene time is a warning.
     Compare {
         reference: PathBuf,
         #[arg(required = true)]
@@ -362,11 +364,19 @@ fn run(cli: Cli) -> Result<()> {
         Command::Bake(args) => bake_command(args)?,
         Command::Slurm(args) => slurm_command(args)?,
         Command::Compare { reference, images } => {
+            use rangewalk::eval::metrics;
             let r = image::read_exr(&reference)?;
+            // The scene's size for telling one camera position from another.
+            let scale = r.distance.iter().copied().fold(0.0, f32::max);
             for p in images {
                 let t = image::read_exr(&p)?;
-                let e = rangewalk::eval::metrics::compare(&t.radiance, &r.radiance, None)
-                    .with_context(|| format!("{} against {}", p.display(), reference.display()))?;
+                let against = || format!("{} against {}", p.display(), reference.display());
+                let e = metrics::check_same_view(&t.meta, &r.meta, scale)
+                    .and_then(|()| metrics::compare(&t, &r, None))
+                    .with_context(against)?;
+                if let Some(w) = metrics::time_warning(&t.meta, &r.meta) {
+                    eprintln!("warning: {}: {w}", against());
+                }
                 println!(
                     "{}: LRMS {:.4}, bias {:+.4} over {} pixels",
                     p.display(),

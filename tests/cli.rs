@@ -756,3 +756,85 @@ fn base_image_sizes_outside_the_range_are_refused() {
     );
     assert!(!Path::new(out).exists());
 }
+
+/// `compare` measures an image only against a reference of its size,
+/// projection and camera: a 64x32 image against a 32x64 one has as many
+/// pixels and gave an LRMS of 20.8; a fisheye against a perspective image,
+/// or another camera's, compared pixels that look elsewhere. Each is an
+/// error naming both files; another scene time is a warning.
+#[test]
+fn compare_refuses_images_of_other_sizes_projections_and_cameras() {
+    use glam::Vec3;
+    use rangewalk::camera::{Camera, Projection};
+    use rangewalk::image::{RangeImage, RangeMeta};
+
+    let dir = tempfile::tempdir().unwrap();
+    let perspective = Projection::Perspective { vfov_deg: 40.0 };
+    let (at, to) = (
+        Vec3::new(278.0, 273.0, -800.0),
+        Vec3::new(278.0, 273.0, 0.0),
+    );
+    let write = |name: &str, projection, position: Vec3, (w, h), time: f32| {
+        let camera = Camera::look_at(position, to, Vec3::Y, projection, w, h).unwrap();
+        let mut img = RangeImage::empty(RangeMeta {
+            camera,
+            time,
+            scene: name.into(),
+        });
+        for (i, c) in img.radiance.iter_mut().enumerate() {
+            *c = Vec3::splat(1.0 + (i % 7) as f32);
+        }
+        img.distance.fill(800.0);
+        let path = dir.path().join(name);
+        rangewalk::image::write_exr(&path, &img).unwrap();
+        path.to_str().unwrap().to_owned()
+    };
+    let reference = write("ref.exr", perspective, at, (64, 32), 0.5);
+    let same = write("same.exr", perspective, at, (64, 32), 0.5);
+    let tall = write("tall.exr", perspective, at, (32, 64), 0.5);
+    let fisheye = write("fisheye.exr", Projection::Fisheye, at, (64, 32), 0.5);
+    let wider = write(
+        "wider.exr",
+        Projection::Perspective { vfov_deg: 60.0 },
+        at,
+        (64, 32),
+        0.5,
+    );
+    let moved = write("moved.exr", perspective, at + Vec3::X * 10.0, (64, 32), 0.5);
+    let later = write("later.exr", perspective, at, (64, 32), 0.75);
+
+    for (image, needles) in [
+        (&tall, vec!["tall.exr against", "ref.exr", "32x64", "64x32"]),
+        (
+            &fisheye,
+            vec!["fisheye.exr against", "ref.exr", "a fisheye view"],
+        ),
+        (
+            &wider,
+            vec!["wider.exr against", "60° vertical", "40° vertical"],
+        ),
+        (&moved, vec!["moved.exr against", "ref.exr", "camera is at"]),
+    ] {
+        let o = rangewalk(&["compare", &reference, image]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{image}: {err}");
+        assert!(
+            String::from_utf8_lossy(&o.stdout).is_empty(),
+            "{image}: an error was printed"
+        );
+        for needle in needles {
+            assert!(err.contains(needle), "{image}: `{needle}` not in {err}");
+        }
+    }
+    let o = rangewalk(&["compare", &reference, &same, &later]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("same.exr: LRMS 0.0000"), "{out}");
+    assert!(out.contains("later.exr: LRMS 0.0000"), "{out}");
+    let err = stderr(&o);
+    assert!(
+        err.contains("warning: ") && err.contains("later.exr") && err.contains("t = 0.75 s"),
+        "{err}"
+    );
+    assert!(!err.contains("same.exr"), "{err}");
+}

@@ -275,8 +275,8 @@ fn subpixels_show_each_surface_by_its_share_where_a_silhouette_crosses_a_pixel()
         };
         let (frame, stats) = synth.frame(&camera, 0.0, &opts).unwrap();
         assert_eq!(stats.holes, 0, "{supersample}: fill both leaves no hole");
-        let e = metrics::compare(&frame.radiance, &reference.radiance, Some(&edge)).unwrap();
-        let all = metrics::compare(&frame.radiance, &reference.radiance, None).unwrap();
+        let e = metrics::compare(&frame, &reference, Some(&edge)).unwrap();
+        let all = metrics::compare(&frame, &reference, None).unwrap();
         eprintln!(
             "{supersample}x{supersample} subpixels: edge LRMS {:.4}, whole frame {:.4}",
             e.lrms, all.lrms
@@ -309,7 +309,7 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
     let (both, stats) = synth.frame(&camera, 0.0, &Options::default()).unwrap();
     assert_eq!(stats.images.len(), 2, "both views");
     assert_eq!(stats.holes, 0, "fill both leaves no hole");
-    let all = metrics::compare(&both.radiance, &reference.radiance, None).unwrap();
+    let all = metrics::compare(&both, &reference, None).unwrap();
     // Inside surfaces (pixels whose neighbours show the same object): the
     // shading carried over from the bases, within the noise of their 16
     // samples per pixel. Other edges are resampled from one or two base
@@ -323,7 +323,7 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
             (-1..=1).all(|dy| (-1..=1).all(|dx| id(x + dx, y + dy) == id(x, y)))
         })
         .collect();
-    let e = metrics::compare(&both.radiance, &reference.radiance, Some(&inside)).unwrap();
+    let e = metrics::compare(&both, &reference, Some(&inside)).unwrap();
     eprintln!(
         "LRMS {:.4} (all pixels {:.4}), bias {:+.4}",
         e.lrms, all.lrms, all.bias
@@ -337,7 +337,7 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
         ..Options::default()
     };
     let (plain, plain_stats) = synth.frame(&camera, 0.0, &untraced).unwrap();
-    let plain = metrics::compare(&plain.radiance, &reference.radiance, None).unwrap();
+    let plain = metrics::compare(&plain, &reference, None).unwrap();
     eprintln!(
         "whole frame: LRMS {:.4} with {} pixels at the light traced, {:.4} without",
         all.lrms, stats.light_pixels, plain.lrms
@@ -354,8 +354,8 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
     };
     let (covered, covered_stats) = synth.frame(&camera, 0.0, &cover).unwrap();
     assert_eq!(covered_stats.holes, 0, "cover: fill both leaves no hole");
-    let c = metrics::compare(&covered.radiance, &reference.radiance, Some(&inside)).unwrap();
-    let c_all = metrics::compare(&covered.radiance, &reference.radiance, None).unwrap();
+    let c = metrics::compare(&covered, &reference, Some(&inside)).unwrap();
+    let c_all = metrics::compare(&covered, &reference, None).unwrap();
     eprintln!(
         "cover: LRMS {:.4} (all pixels {:.4}), bias {:+.4}",
         c.lrms, c_all.lrms, c_all.bias
@@ -378,8 +378,8 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
         first_stats.hidden > 0,
         "nearest: nothing hidden was left out"
     );
-    let n = metrics::compare(&first.radiance, &reference.radiance, Some(&inside)).unwrap();
-    let n_all = metrics::compare(&first.radiance, &reference.radiance, None).unwrap();
+    let n = metrics::compare(&first, &reference, Some(&inside)).unwrap();
+    let n_all = metrics::compare(&first, &reference, None).unwrap();
     eprintln!(
         "nearest: LRMS {:.4} (all pixels {:.4}), bias {:+.4}, {} base pixels left out",
         n.lrms, n_all.lrms, n_all.bias, first_stats.hidden
@@ -415,9 +415,7 @@ fn a_frame_between_two_bases_matches_a_render_of_its_view() {
 
 /// Luminance error of `frame` against `reference` over `mask`.
 fn error(frame: &RangeImage, reference: &RangeImage, mask: &[bool]) -> f64 {
-    metrics::compare(&frame.radiance, &reference.radiance, Some(mask))
-        .unwrap()
-        .lrms
+    metrics::compare(frame, reference, Some(mask)).unwrap().lrms
 }
 
 #[test]
@@ -731,8 +729,7 @@ fn a_walk_writes_every_frame_an_animation_and_a_summary() {
         let reference =
             rangewalk::image::read_exr(out.join(format!("reference-{i:04}.exr"))).unwrap();
         assert_eq!(reference.meta.time, frame.meta.time);
-        let e =
-            rangewalk::eval::metrics::compare(&frame.radiance, &reference.radiance, None).unwrap();
+        let e = rangewalk::eval::metrics::compare(&frame, &reference, None).unwrap();
         assert!((c["lrms"].as_f64().unwrap() - e.lrms).abs() <= 1e-9 * e.lrms.max(1.0));
         assert!((c["bias"].as_f64().unwrap() - e.bias).abs() <= 1e-9);
     }
@@ -745,4 +742,166 @@ fn a_walk_writes_every_frame_an_animation_and_a_summary() {
         apng.windows(4).any(|w| w == b"acTL"),
         "walk.png is animated"
     );
+}
+
+/// A bake of the Cornell box small enough to make in a moment (16² bases
+/// at its view space's ends, t = 0 and 1), in a folder of `dir`.
+fn tiny_bake(dir: &Path) -> (Scene, PathBuf) {
+    let scene = load(&scene_path("cornell-box"));
+    let bake_dir = dir.join("bake");
+    bake_into(
+        &scene,
+        &bake_dir,
+        &settings(16, 1),
+        ends(&scene, &[0.0, 1.0]),
+    );
+    (scene, bake_dir)
+}
+
+/// Counts that set the work of a pixel or of a walk are bounded, in the
+/// library (so the C ABI has the same bounds) and at the command line:
+/// each refusal names the flag, the value, the range and why, before any
+/// output is made. `--light-rays 100000` asked for 10¹⁰ rays a pixel,
+/// `--fps` in the thousands for a file per frame without end.
+#[test]
+fn counts_of_work_per_pixel_and_frames_per_walk_are_bounded() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, bake_dir) = tiny_bake(dir.path());
+    let bake_s = bake_dir.to_str().unwrap();
+    let out = dir.path().join("frame.exr");
+    let out_s = out.to_str().unwrap();
+    for (flag, value, needle) in [
+        (
+            "--light-rays",
+            "100000",
+            "--light-rays 100000 must lie in 0..=32",
+        ),
+        ("--light-rays", "33", "--light-rays 33 must lie in 0..=32"),
+        (
+            "--reshade-samples",
+            "100000",
+            "--reshade-samples 100000 must lie in 1..=256",
+        ),
+        (
+            "--reshade-samples",
+            "0",
+            "--reshade-samples 0 must lie in 1..=256",
+        ),
+        ("--bases", "0", "--bases 0"),
+        ("--tolerance", "1", "--tolerance 1 must lie in (0, 1)"),
+    ] {
+        let o = rangewalk(&[
+            "synth", bake_s, "--time", "0.5", "--size", "8x8", flag, value, "--out", out_s,
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{flag} {value}: {err}");
+        assert!(err.contains(needle), "{flag} {value}: {err}");
+        assert!(!out.exists(), "{flag} {value} wrote a frame");
+    }
+    // The highest values allowed make a frame.
+    let o = rangewalk(&[
+        "synth",
+        bake_s,
+        "--time",
+        "0.5",
+        "--size",
+        "8x8",
+        "--light-rays",
+        "32",
+        "--time-interp",
+        "reshade",
+        "--reshade-samples",
+        "256",
+        "--out",
+        out_s,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.exists());
+
+    // The library refuses them too, whoever calls it.
+    let baked = bake::Bake::open(&bake_dir, &scene).unwrap();
+    let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
+    let camera = scene.camera("main").unwrap().perspective(8, 8).unwrap();
+    for (opts, needle) in [
+        (
+            Options {
+                light_rays: 100_000,
+                ..Options::default()
+            },
+            "options.light_rays 100000",
+        ),
+        (
+            Options {
+                reshade_samples: 1 << 20,
+                ..Options::default()
+            },
+            "options.reshade_samples 1048576",
+        ),
+    ] {
+        let msg = format!("{:#}", synth.frame(&camera, 0.5, &opts).unwrap_err());
+        assert!(msg.contains(needle), "{msg}");
+    }
+
+    // A walk of more frames than a walk writes: refused before the first.
+    let walk_out = dir.path().join("walk");
+    let o = rangewalk(&[
+        "walk",
+        bake_s,
+        "--path",
+        "walk",
+        "--size",
+        "4x4",
+        "--fps",
+        "20000",
+        "--out",
+        walk_out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--fps 20000") && err.contains("20001 frames") && err.contains("10000"),
+        "{err}"
+    );
+    assert!(!walk_out.exists() && !dir.path().join("walk.partial").exists());
+}
+
+/// A frame too large for memory is an error that says how much it needs,
+/// not an abort: under a 1.5 GB address-space limit, an 8192² frame (2²
+/// subpixels by default: 268 M subpixels, 12.9 GB of z-buffer) is refused
+/// by its size, subpixels counted, and a 4096² one, within the size limit,
+/// fails to allocate its 3.2 GB z-buffer and says so. Neither leaves a
+/// file.
+#[test]
+fn a_frame_too_large_for_memory_is_an_error_saying_how_much_it_needs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, bake_dir) = tiny_bake(dir.path());
+    let out = dir.path().join("frame.exr");
+    for (size, needles) in [
+        (
+            "8192x8192",
+            ["268435456 subpixels", "12.9 GB", "--supersample"],
+        ),
+        (
+            "4096x4096",
+            ["z-buffer", "needs 3.2 GB", "allocation failed"],
+        ),
+    ] {
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg(r#"ulimit -v 1500000 && exec "$0" "$@""#)
+            .arg(env!("CARGO_BIN_EXE_rangewalk"))
+            .args(["synth", bake_dir.to_str().unwrap(), "--time", "0.5"])
+            .args(["--size", size, "--out", out.to_str().unwrap()])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{size}: {err}");
+        for needle in needles {
+            assert!(err.contains(needle), "{size}: `{needle}` not in {err}");
+        }
+        for abort in ["memory allocation of", "backtrace", "panicked"] {
+            assert!(!err.contains(abort), "{size}: {err}");
+        }
+        assert!(!out.exists(), "{size}");
+    }
 }

@@ -93,6 +93,22 @@ pub(crate) unsafe fn write(dst: *mut f32, values: &[f32]) {
     unsafe { std::ptr::copy_nonoverlapping(values.as_ptr(), dst, values.len()) }
 }
 
+/// Copies `values` into the caller's buffer of `3 * values.len()` floats,
+/// red, green, blue a pixel, with no copy of a frame's size in between
+/// (a large frame's flat copy is an allocation that may fail).
+///
+/// # Safety
+/// `dst` points to `3 * values.len()` writable floats that no Rust
+/// reference aliases.
+pub(crate) unsafe fn write_rgb(dst: *mut f32, values: &[glam::Vec3]) {
+    const _: () = assert!(std::mem::size_of::<glam::Vec3>() == 3 * std::mem::size_of::<f32>());
+    // SAFETY: `Vec3` is `#[repr(C)]` { x, y, z: f32 } with no padding (the
+    // size assertion above), so `values` is `3 * len` floats in a row; by
+    // the caller's promise `dst` holds that many and does not overlap
+    // memory owned by Rust.
+    unsafe { std::ptr::copy_nonoverlapping(values.as_ptr().cast::<f32>(), dst, 3 * values.len()) }
+}
+
 /// An options struct that starts with its `struct_size`: the bytes the
 /// caller's header knew of are read, the rest keep `defaults`, so a
 /// program built against an older header still works.

@@ -36,13 +36,26 @@ impl Failure {
     pub fn of(status: rw_status, e: anyhow::Error) -> Self {
         let status = if e.chain().any(|c| c.is::<crate::bake::Cancelled>()) {
             rw_status::RW_CANCELLED
-        } else if e.chain().any(|c| c.is::<std::io::Error>()) {
+        } else if e.chain().any(is_io) {
             rw_status::RW_IO
         } else {
             status
         };
         Self::new(status, format!("{e:#}"))
     }
+}
+
+/// Whether `e` says a file could not be read or written: an error of the
+/// OS, or one of the OpenImageIO shim, which does nothing but read and
+/// write image files and whose failures (a full disk among them) arrive as
+/// C++ exceptions carrying the OS's reason in words, not as
+/// `std::io::Error`.
+fn is_io(e: &(dyn std::error::Error + 'static)) -> bool {
+    #[cfg(feature = "oiio")]
+    if e.is::<cxx::Exception>() {
+        return true;
+    }
+    e.is::<std::io::Error>()
 }
 
 /// Runs an exported function's body: a failure or a panic becomes its

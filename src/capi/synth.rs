@@ -5,9 +5,7 @@ use super::bake::rw_bake;
 use super::error::{guard, Failure};
 use super::status::rw_status;
 use super::view::rw_view;
-use crate::synth::{
-    Blend, Fill, Filter, Kept, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET, MAX_SUPERSAMPLE,
-};
+use crate::synth::{Blend, Fill, Filter, Kept, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET};
 
 /// Hole filling (`rangewalk synth --fill`).
 #[repr(u32)]
@@ -60,10 +58,12 @@ pub struct rw_synth_options {
     pub tolerance: f32,
     /// Farthest a background fill carries a value, in pixels (at most 65535).
     pub fill_reach: u32,
-    /// Light samples per pixel when re-shading (at least 1).
+    /// Light samples per pixel when re-shading, 1 to 256 (each is three
+    /// shadow rays a pixel).
     pub reshade_samples: u32,
-    /// Rays per side of a pixel at or beside a light; 0 keeps lights as
-    /// reprojected.
+    /// Rays per side of a pixel at or beside a light, 0 to 32 (32² rays
+    /// resolve a pixel's share of a light to a thousandth); 0 keeps lights
+    /// as reprojected.
     pub light_rays: u32,
     pub seed: u64,
     /// Memory for the bases each synthesizing thread keeps, in MiB.
@@ -112,6 +112,11 @@ impl Default for rw_synth_options {
     }
 }
 
+/// How the C caller names an [`Options`] field.
+fn field(name: &str) -> String {
+    format!("options->{name}")
+}
+
 impl rw_synth_options {
     /// The synthesis options and the memory budget in bytes.
     fn options(&self) -> Result<(Options, usize), Failure> {
@@ -147,21 +152,8 @@ impl rw_synth_options {
             1 => Filter::Cover,
             v => return Err(bad("filter", v.to_string(), "is not an rw_filter")),
         };
-        if self.bases == 0 {
-            return Err(bad("bases", "0".into(), "must be at least 1"));
-        }
-        if !(self.tolerance > 0.0 && self.tolerance < 1.0) {
-            return Err(bad(
-                "tolerance",
-                self.tolerance.to_string(),
-                "must lie in (0, 1)",
-            ));
-        }
         let fill_reach = u16::try_from(self.fill_reach)
             .map_err(|_| bad("fill_reach", self.fill_reach.to_string(), "exceeds 65535"))?;
-        if self.reshade_samples == 0 {
-            return Err(bad("reshade_samples", "0".into(), "must be at least 1"));
-        }
         let budget = usize::try_from(self.base_memory_mib)
             .ok()
             .and_then(|m| m.checked_mul(1 << 20))
@@ -172,13 +164,6 @@ impl rw_synth_options {
                     "overflows",
                 )
             })?;
-        if !(1..=MAX_SUPERSAMPLE).contains(&self.supersample) {
-            return Err(bad(
-                "supersample",
-                self.supersample.to_string(),
-                &format!("must lie in 1..={MAX_SUPERSAMPLE}"),
-            ));
-        }
         let options = Options {
             supersample: self.supersample,
             fill,
@@ -192,6 +177,9 @@ impl rw_synth_options {
             seed: self.seed,
             filter,
         };
+        options
+            .check(&field)
+            .map_err(|e| Failure::invalid(format!("{e:#}")))?;
         Ok((options, budget))
     }
 }
@@ -281,6 +269,9 @@ pub unsafe extern "C" fn rw_synth_with(
             .check_time(time)
             .map_err(|e| Failure::invalid(format!("{e:#}")))?;
         let (options, budget) = options.options()?;
+        options
+            .check_frame_size(width, height, &field)
+            .map_err(|e| Failure::invalid(format!("{e:#}")))?;
         let camera = view.camera(width, height)?;
         let kept = {
             let mut pool = handle.kept.lock().unwrap_or_else(|e| e.into_inner());
@@ -298,10 +289,9 @@ pub unsafe extern "C" fn rw_synth_with(
             .unwrap_or_else(|e| e.into_inner())
             .push(kept);
         let (frame, _) = frame.map_err(|e| Failure::of(rw_status::RW_RENDER, e))?;
-        let flat: Vec<f32> = frame.radiance.iter().flat_map(|c| c.to_array()).collect();
         // SAFETY: `rgb` is not NULL and holds width * height * 3 floats,
-        // `flat`'s length (caller's promise).
-        unsafe { args::write(rgb, &flat) };
+        // three for each of the frame's pixels (caller's promise).
+        unsafe { args::write_rgb(rgb, &frame.radiance) };
         if !distance.is_null() {
             // SAFETY: not NULL, and holds width * height floats, the
             // frame's pixel count (caller's promise).

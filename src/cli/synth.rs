@@ -14,6 +14,11 @@ use rangewalk::synth::{
 
 use super::choice;
 
+/// The flag of an [`Options`] field: `light_rays` is `--light-rays`.
+fn flag(field: &str) -> String {
+    format!("--{}", field.replace('_', "-"))
+}
+
 /// Frame size of `rangewalk synth` and `walk`.
 pub const DEFAULT_SIZE: &str = "512x512";
 
@@ -73,18 +78,10 @@ pub struct SynthOptions {
 }
 
 impl SynthOptions {
-    pub fn options(&self) -> Result<Options> {
-        anyhow::ensure!(self.bases > 0, "--bases must be at least 1");
-        anyhow::ensure!(
-            self.tolerance > 0.0 && self.tolerance < 1.0,
-            "--tolerance {} must lie in (0, 1)",
-            self.tolerance
-        );
-        anyhow::ensure!(
-            self.reshade_samples > 0,
-            "--reshade-samples must be at least 1"
-        );
-        Ok(Options {
+    /// The synthesis options, checked against the library's limits (named
+    /// by their flags), and that frames of `size` stay within them.
+    pub fn options(&self, size: (u32, u32)) -> Result<Options> {
+        let options = Options {
             fill: self.fill,
             time_interp: self.time_interp,
             bases: self.bases,
@@ -96,6 +93,20 @@ impl SynthOptions {
             seed: self.seed,
             supersample: self.supersample,
             filter: self.filter,
+        };
+        options.check(&flag)?;
+        options.check_frame_size(size.0, size.1, &flag)?;
+        Ok(options)
+    }
+
+    /// `--base-memory` in bytes.
+    pub fn base_memory_bytes(&self) -> Result<usize> {
+        self.base_memory.checked_mul(1 << 20).with_context(|| {
+            format!(
+                "--base-memory {} MiB overflows a byte count; give at most {} MiB",
+                self.base_memory,
+                usize::MAX >> 20
+            )
         })
     }
 
@@ -134,7 +145,8 @@ pub struct SynthArgs {
 }
 
 pub fn synth(args: &SynthArgs) -> Result<()> {
-    let options = args.synth.options()?;
+    let options = args.synth.options(args.size)?;
+    let budget = args.synth.base_memory_bytes()?;
     image::check_output("--out", &args.out, image::OutputKind::Exr)?;
     if let Some(p) = &args.preview {
         image::check_output("--preview", p, image::OutputKind::Png)?;
@@ -158,7 +170,7 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
         eprintln!("{w}");
     }
     let camera = desc.perspective(args.size.0, args.size.1)?;
-    let mut synth = Synthesizer::new(&scene, &bake, args.synth.base_memory << 20);
+    let mut synth = Synthesizer::new(&scene, &bake, budget);
     let (frame, stats) = synth.frame(&camera, args.time, &options)?;
     image::write_exr(&args.out, &frame)?;
     if let Some(p) = &args.preview {
@@ -231,11 +243,12 @@ pub struct WalkArgs {
 }
 
 pub fn walk(args: &WalkArgs) -> Result<()> {
-    let options = args.synth.options()?;
+    let options = args.synth.options(args.size)?;
+    let budget = args.synth.base_memory_bytes()?;
     image::check_output_dir("--out", &args.out)?;
     rangewalk::output::check_only(&args.out, &walk::CONTENTS)?;
     let (scene, bake) = args.synth.open(&args.bake)?;
-    let mut synth = Synthesizer::new(&scene, &bake, args.synth.base_memory << 20);
+    let mut synth = Synthesizer::new(&scene, &bake, budget);
     let settings = WalkSettings {
         path: args.path.clone(),
         width: args.size.0,

@@ -70,9 +70,9 @@ impl ViewArgs {
             record: self.record.clone(),
             speed: self.speed,
             fps: self.fps,
-            options: self.synth.options()?,
+            options: self.synth.options(self.size)?,
             moving: self.moving,
-            base_memory_bytes: self.synth.base_memory << 20,
+            base_memory_bytes: self.synth.base_memory_bytes()?,
             exposure: self.synth.exposure,
         })
     }

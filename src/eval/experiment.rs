@@ -18,7 +18,7 @@ use anyhow::{ensure, Context, Result};
 use glam::Vec3;
 
 use super::flip::Flip;
-use super::metrics::{self, ImageError};
+use super::metrics::{self, ImageError, Pixels};
 use super::reference::{self, Reference};
 use super::staging::{Staging, REFERENCE_DIR};
 use super::summary;
@@ -384,7 +384,7 @@ fn run_quality(
         engine.set_transforms(&ctx.scene.at(t))?;
         let (img, _) = multipass::render(ctx.scene, &*engine, ctx.camera, t, &settings, &cache)?;
         let render_s = start.elapsed().as_secs_f64();
-        let error = metrics::compare(&img.radiance, ctx.refs[i], None)
+        let error = metrics::compare(&img, Pixels::of(ctx.camera, ctx.refs[i]), None)
             .with_context(|| format!("frame {i} (t = {t} s)"))?;
         eprintln!(
             "{tag}: frame {}/{} t = {t:.4} s: LRMS {:.4}, bias {:+.4} ({render_s:.3} s)",
@@ -433,8 +433,12 @@ fn path_tracer_run(
     for (i, &t) in ctx.times.iter().enumerate() {
         let (radiance, render_s) =
             reference::path_trace(ctx.scene, engine, ctx.camera, t, spp, TEST_SEED)?;
-        let error = metrics::compare(&radiance, ctx.refs[i], None)
-            .with_context(|| format!("path tracer, frame {i} (t = {t} s)"))?;
+        let error = metrics::compare(
+            Pixels::of(ctx.camera, &radiance),
+            Pixels::of(ctx.camera, ctx.refs[i]),
+            None,
+        )
+        .with_context(|| format!("path tracer, frame {i} (t = {t} s)"))?;
         eprintln!(
             "path tracer {spp} spp: frame {}/{}: LRMS {:.4} ({render_s:.3} s)",
             i + 1,
@@ -488,8 +492,12 @@ pub(crate) fn convergence(
     let mut spp = 1;
     loop {
         let (radiance, seconds) = reference::path_trace(scene, engine, camera, t, spp, TEST_SEED)?;
-        let error = metrics::compare(&radiance, reference, None)
-            .with_context(|| format!("path tracer convergence at {spp} spp"))?;
+        let error = metrics::compare(
+            Pixels::of(camera, &radiance),
+            Pixels::of(camera, reference),
+            None,
+        )
+        .with_context(|| format!("path tracer convergence at {spp} spp"))?;
         eprintln!(
             "path tracer convergence: {spp} spp: LRMS {:.4} ({seconds:.3} s)",
             error.lrms

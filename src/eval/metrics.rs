@@ -5,6 +5,9 @@
 use anyhow::{bail, ensure, Result};
 use glam::Vec3;
 
+use crate::camera::{Camera, Projection};
+use crate::image::{RangeImage, RangeMeta};
+
 /// Rec. 709 luminance `Y` of linear RGB (the primaries the renderer uses).
 pub fn luminance(c: Vec3) -> f64 {
     0.2126 * c.x as f64 + 0.7152 * c.y as f64 + 0.0722 * c.z as f64
@@ -23,18 +26,69 @@ pub struct ImageError {
     pub pixels: usize,
 }
 
-/// Compares `test` with `reference` (row-major linear RGB of one size) over
-/// the pixels where `mask` is true, or over all pixels without a mask.
+/// Row-major linear RGB and the size it has: images are compared only
+/// where their widths and heights agree, not merely their pixel counts (a
+/// 64×32 image against a 32×64 one has as many pixels, and its error
+/// means nothing).
+#[derive(Clone, Copy, Debug)]
+pub struct Pixels<'a> {
+    pub width: u32,
+    pub height: u32,
+    pub radiance: &'a [Vec3],
+}
+
+impl<'a> Pixels<'a> {
+    pub fn new(width: u32, height: u32, radiance: &'a [Vec3]) -> Self {
+        Self {
+            width,
+            height,
+            radiance,
+        }
+    }
+
+    /// `radiance` as `camera` saw it: its size is the camera's.
+    pub fn of(camera: &Camera, radiance: &'a [Vec3]) -> Self {
+        Self::new(camera.width, camera.height, radiance)
+    }
+}
+
+impl<'a> From<&'a RangeImage> for Pixels<'a> {
+    fn from(image: &'a RangeImage) -> Self {
+        Self::new(image.width, image.height, &image.radiance)
+    }
+}
+
+/// Compares `test` with `reference` over the pixels where `mask` is true,
+/// or over all pixels without a mask.
 ///
-/// Errors, rather than a meaningless number, when the sizes differ, a pixel
-/// is not finite, no pixel is selected or the reference is black there.
-pub fn compare(test: &[Vec3], reference: &[Vec3], mask: Option<&[bool]>) -> Result<ImageError> {
+/// Errors, rather than a meaningless number, when the sizes differ (width
+/// and height, not only the pixel count), an image holds other than its
+/// size's pixels, a pixel is not finite, no pixel is selected or the
+/// reference is black there.
+pub fn compare<'a, 'b>(
+    test: impl Into<Pixels<'a>>,
+    reference: impl Into<Pixels<'b>>,
+    mask: Option<&[bool]>,
+) -> Result<ImageError> {
+    let (t, r) = (test.into(), reference.into());
     ensure!(
-        test.len() == reference.len(),
-        "test image has {} pixels but the reference {}",
-        test.len(),
-        reference.len()
+        (t.width, t.height) == (r.width, r.height),
+        "the image is {}x{} but the reference {}x{}: only images of one size compare pixel by pixel",
+        t.width,
+        t.height,
+        r.width,
+        r.height
     );
+    for (what, p) in [("image", t), ("reference", r)] {
+        ensure!(
+            p.radiance.len() == p.width as usize * p.height as usize,
+            "the {what} of {}x{} pixels holds {} values",
+            p.width,
+            p.height,
+            p.radiance.len()
+        );
+    }
+    let (test, reference) = (t.radiance, r.radiance);
     if let Some(m) = mask {
         ensure!(
             m.len() == reference.len(),
@@ -73,9 +127,72 @@ pub fn compare(test: &[Vec3], reference: &[Vec3], mask: Option<&[bool]>) -> Resu
     })
 }
 
+/// Refuses to compare images of different views: another projection (or
+/// field of view) maps pixel `i` to another direction, and another camera
+/// pose shows other surfaces there, so their pixel-by-pixel error measures
+/// the difference of the views, not of the renderings. `scale` is a length
+/// of the scene (its largest distance seen, say): camera positions within
+/// 10⁻⁴ of it are one, as are directions within 10⁻⁴, so that the same
+/// camera computed two ways (a path's pose, a named camera) still matches.
+///
+/// The scene time is not compared: a frame against a reference at another
+/// time is how much the scene changed, which can be what is asked
+/// ([`time_warning`] says it).
+pub fn check_same_view(test: &RangeMeta, reference: &RangeMeta, scale: f32) -> Result<()> {
+    let (a, b) = (&test.camera, &reference.camera);
+    let projection = |p: &Projection| match p {
+        Projection::Perspective { vfov_deg } => format!("a perspective ({vfov_deg}° vertical)"),
+        Projection::Fisheye => "a fisheye".into(),
+        Projection::Sphere => "a full-sphere".into(),
+    };
+    ensure!(
+        a.projection == b.projection,
+        "the image is {} view but the reference {}: their pixels look in other directions",
+        projection(&a.projection),
+        projection(&b.projection)
+    );
+    let scale = scale
+        .max(a.position.length())
+        .max(b.position.length())
+        .max(f32::MIN_POSITIVE);
+    let moved = a.position.distance(b.position) > 1e-4 * scale;
+    let turned = [(a.forward, b.forward), (a.up, b.up)]
+        .iter()
+        .any(|(u, v)| u.distance(*v) > 1e-4);
+    ensure!(
+        !moved && !turned,
+        "the image's camera is at {} looking along {} (up {}) but the reference's at {} along {} (up {}): \
+         errors between different views measure the move, not the rendering; \
+         make the image for the reference's camera",
+        a.position,
+        a.forward,
+        a.up,
+        b.position,
+        b.forward,
+        b.up
+    );
+    Ok(())
+}
+
+/// A warning when `test` and `reference` were made at different scene
+/// times (see [`check_same_view`]).
+pub fn time_warning(test: &RangeMeta, reference: &RangeMeta) -> Option<String> {
+    (test.time != reference.time).then(|| {
+        format!(
+            "the image is at t = {} s but the reference at t = {} s: the error includes what moved between them",
+            test.time, reference.time
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A one-row image of `v`.
+    fn row(v: &[Vec3]) -> Pixels<'_> {
+        Pixels::new(v.len() as u32, 1, v)
+    }
 
     fn gradient(n: usize) -> Vec<Vec3> {
         (0..n)
@@ -86,7 +203,7 @@ mod tests {
     #[test]
     fn identical_images_have_no_error() {
         let a = gradient(64);
-        let e = compare(&a, &a, None).unwrap();
+        let e = compare(row(&a), row(&a), None).unwrap();
         assert_eq!((e.lrms, e.bias, e.pixels), (0.0, 0.0, 64));
     }
 
@@ -94,7 +211,7 @@ mod tests {
     fn uniform_image_ten_percent_brighter() {
         let r = vec![Vec3::new(0.3, 0.6, 0.9); 100];
         let t: Vec<Vec3> = r.iter().map(|c| *c * 1.1).collect();
-        let e = compare(&t, &r, None).unwrap();
+        let e = compare(row(&t), row(&r), None).unwrap();
         assert!((e.lrms - 0.1).abs() < 1e-6, "lrms {}", e.lrms);
         assert!((e.bias - 0.1).abs() < 1e-6, "bias {}", e.bias);
     }
@@ -107,7 +224,7 @@ mod tests {
         let y: Vec<f64> = r.iter().map(|&c| luminance(c)).collect();
         let mean = y.iter().sum::<f64>() / y.len() as f64;
         let rms = (y.iter().map(|v| v * v).sum::<f64>() / y.len() as f64).sqrt();
-        let e = compare(&t, &r, None).unwrap();
+        let e = compare(row(&t), row(&r), None).unwrap();
         assert!((e.lrms - 0.1 * rms / mean).abs() < 1e-6);
         assert!((e.bias - 0.1).abs() < 1e-6);
     }
@@ -117,7 +234,7 @@ mod tests {
         let r = vec![Vec3::ONE; 4];
         let d = Vec3::splat(0.5);
         let t = vec![Vec3::ONE + d, Vec3::ONE - d, Vec3::ONE + d, Vec3::ONE - d];
-        let e = compare(&t, &r, None).unwrap();
+        let e = compare(row(&t), row(&r), None).unwrap();
         assert!((e.lrms - 0.5).abs() < 1e-6);
         assert!(e.bias.abs() < 1e-12);
     }
@@ -130,10 +247,10 @@ mod tests {
             .enumerate()
             .map(|(i, c)| *c * (1.0 + 0.03 * (i % 5) as f32))
             .collect();
-        let base = compare(&t, &r, None).unwrap();
+        let base = compare(row(&t), row(&r), None).unwrap();
         for k in [1e-6f32, 1e8] {
             let scale = |v: &[Vec3]| v.iter().map(|c| *c * k).collect::<Vec<_>>();
-            let e = compare(&scale(&t), &scale(&r), None).unwrap();
+            let e = compare(row(&scale(&t)), row(&scale(&r)), None).unwrap();
             assert!((e.lrms - base.lrms).abs() < 1e-6 * base.lrms, "{k}: {e:?}");
             assert!((e.bias - base.bias).abs() < 1e-6 * base.bias, "{k}: {e:?}");
         }
@@ -144,7 +261,7 @@ mod tests {
         let r = vec![Vec3::ONE; 4];
         let t = vec![Vec3::ONE, Vec3::ONE, Vec3::splat(100.0), Vec3::ONE];
         let mask = [true, true, false, true];
-        let e = compare(&t, &r, Some(&mask)).unwrap();
+        let e = compare(row(&t), row(&r), Some(&mask)).unwrap();
         assert_eq!((e.lrms, e.bias, e.pixels), (0.0, 0.0, 3));
     }
 
@@ -158,14 +275,71 @@ mod tests {
     #[test]
     fn meaningless_comparisons_are_errors() {
         let a = vec![Vec3::ONE; 4];
-        assert!(compare(&a, &a[..3], None).is_err());
-        assert!(compare(&a, &[Vec3::ZERO; 4], None).is_err());
-        assert!(compare(&a, &a, Some(&[false; 4])).is_err());
-        assert!(compare(&a, &a, Some(&[true; 3])).is_err());
+        assert!(compare(row(&a), row(&a[..3]), None).is_err());
+        assert!(compare(row(&a), row(&[Vec3::ZERO; 4]), None).is_err());
+        assert!(compare(row(&a), row(&a), Some(&[false; 4])).is_err());
+        assert!(compare(row(&a), row(&a), Some(&[true; 3])).is_err());
         let mut nan = a.clone();
         nan[2].y = f32::NAN;
-        let msg = compare(&nan, &a, None).unwrap_err().to_string();
+        let msg = compare(row(&nan), row(&a), None).unwrap_err().to_string();
         assert!(msg.contains("pixel 2"), "{msg}");
-        assert!(compare(&a, &nan, None).is_err());
+        assert!(compare(row(&a), row(&nan), None).is_err());
+    }
+
+    /// A 64×32 image against a 32×64 one has as many pixels and no
+    /// meaningful error: refused, naming both sizes.
+    #[test]
+    fn images_of_other_sizes_are_refused_even_with_as_many_pixels() {
+        let a = gradient(64 * 32);
+        let msg = compare(Pixels::new(64, 32, &a), Pixels::new(32, 64, &a), None)
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("64x32") && msg.contains("32x64"), "{msg}");
+        assert!(compare(Pixels::new(64, 32, &a), Pixels::new(64, 32, &a), None).is_ok());
+        // A size that does not hold the pixels given.
+        let msg = compare(Pixels::new(8, 8, &a), Pixels::new(8, 8, &a), None)
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("8x8") && msg.contains("2048"), "{msg}");
+    }
+
+    fn meta(projection: Projection, position: glam::Vec3, target: glam::Vec3) -> RangeMeta {
+        let camera = Camera::look_at(position, target, Vec3::Y, projection, 8, 8).unwrap();
+        RangeMeta {
+            camera,
+            time: 0.5,
+            scene: String::new(),
+        }
+    }
+
+    #[test]
+    fn images_of_other_views_are_refused() {
+        let p = Projection::Perspective { vfov_deg: 40.0 };
+        let (at, to) = (Vec3::new(1.0, 2.0, 3.0), Vec3::new(1.0, 2.0, -5.0));
+        let reference = meta(p, at, to);
+        let same_view = |m: &RangeMeta| check_same_view(m, &reference, 10.0);
+        assert!(same_view(&meta(p, at, to)).is_ok());
+        // The same camera up to rounding.
+        assert!(same_view(&meta(p, at + Vec3::splat(1e-6), to)).is_ok());
+        for (other, needle) in [
+            (meta(Projection::Fisheye, at, to), "a fisheye view"),
+            (meta(Projection::Sphere, at, to), "a full-sphere view"),
+            (
+                meta(Projection::Perspective { vfov_deg: 60.0 }, at, to),
+                "60° vertical",
+            ),
+            (meta(p, at + Vec3::X * 0.1, to), "the reference's at"),
+            (meta(p, at, to + Vec3::X), "the reference's at"),
+        ] {
+            let msg = same_view(&other).unwrap_err().to_string();
+            assert!(msg.contains(needle), "{msg}");
+        }
+        assert!(time_warning(&reference, &reference).is_none());
+        let later = RangeMeta {
+            time: 0.75,
+            ..reference.clone()
+        };
+        let w = time_warning(&later, &reference).unwrap();
+        assert!(w.contains("t = 0.75 s") && w.contains("t = 0.5 s"), "{w}");
     }
 }

@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use super::experiment::{flip_means, seconds_per_sample, ConvergencePoint};
 use super::flip::Flip;
-use super::metrics::{self, ImageError};
+use super::metrics::{self, ImageError, Pixels};
 use super::plot::{self, Series};
 use super::reference::{self, Reference};
 use super::report::{sig, Table};
@@ -439,16 +439,23 @@ pub struct SynthRun {
 #[derive(Clone, Copy, Debug)]
 pub struct Truth<'a> {
     pub radiance: &'a [Vec3],
+    /// The reference's width and height.
+    pub size: (u32, u32),
     pub emitter_free: Option<&'a [bool]>,
 }
 
 impl Truth<'_> {
     /// `test`'s error over every pixel, and over those without emitters.
-    pub fn compare(&self, test: &[Vec3]) -> Result<(ImageError, Option<ImageError>)> {
-        let all = metrics::compare(test, self.radiance, None)?;
+    pub fn compare<'t>(
+        &self,
+        test: impl Into<Pixels<'t>>,
+    ) -> Result<(ImageError, Option<ImageError>)> {
+        let test = test.into();
+        let reference = Pixels::new(self.size.0, self.size.1, self.radiance);
+        let all = metrics::compare(test, reference, None)?;
         let without = self
             .emitter_free
-            .map(|m| metrics::compare(test, self.radiance, Some(m)))
+            .map(|m| metrics::compare(test, reference, Some(m)))
             .transpose()?;
         Ok((all, without))
     }
@@ -514,7 +521,7 @@ pub fn synthesize(
             .frame(&shot.camera, shot.time, opts)
             .with_context(|| format!("{tag}: frame {i} (t = {} s)", shot.time))?;
         let (error, without_emitters) = truth
-            .compare(&img.radiance)
+            .compare(&img)
             .with_context(|| format!("{tag}: frame {i} (t = {} s)", shot.time))?;
         let synth_s = stats.seconds - stats.load_seconds;
         eprintln!(
@@ -707,8 +714,10 @@ impl Sequence<'_> {
         let truths: Vec<Truth> = references
             .iter()
             .zip(&masks)
-            .map(|(r, m)| Truth {
+            .zip(self.shots)
+            .map(|((r, m), shot)| Truth {
                 radiance: &r.radiance,
+                size: (shot.camera.width, shot.camera.height),
                 emitter_free: m.as_deref(),
             })
             .collect();

@@ -246,6 +246,7 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
         let mask = synthesis::emitter_free(&scene, engine.as_mut(), &shot.camera, time)?;
         let truth = Truth {
             radiance: &reference.radiance,
+            size: (shot.camera.width, shot.camera.height),
             emitter_free: mask.as_deref(),
         };
         let fills = |bake: &crate::bake::Bake, what: &str| -> Result<Vec<FillRun>> {
@@ -352,7 +353,7 @@ fn render_direct(
     };
     let (img, stats) =
         multipass::render(scene, &*engine, &shot.camera, shot.time, &settings, &cache)?;
-    let (error, without_emitters) = truth.compare(&img.radiance)?;
+    let (error, without_emitters) = truth.compare(&img)?;
     let flip = match flip {
         Some(f) => Some(f.hdr_mean(img.width, img.height, truth.radiance, &img.radiance)?),
         None => None,

@@ -63,7 +63,7 @@ impl FrameChecker for ReferenceChecks {
         let (reference, seconds) = path_trace_image(scene, engine, camera, t, self.spp, self.seed)
             .with_context(|| format!("the reference of frame {i} (t = {t})"))?;
         image::write_exr(dir.join(format!("reference-{i:04}.exr")), &reference)?;
-        let e = metrics::compare(&frame.radiance, &reference.radiance, None)
+        let e = metrics::compare(frame, &reference, None)
             .with_context(|| format!("frame {i} against its reference"))?;
         self.size = (frame.width, frame.height);
         self.sheet

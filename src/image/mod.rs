@@ -88,6 +88,32 @@ impl RangeImage {
         }
     }
 
+    /// [`RangeImage::empty`], or an error saying how much memory it
+    /// needs where that cannot be had: for images whose size a user chose.
+    pub fn try_empty(meta: RangeMeta) -> Result<Self> {
+        let (width, height) = (meta.camera.width, meta.camera.height);
+        let n = width as usize * height as usize;
+        let per_pixel = 2 * size_of::<Vec3>() + size_of::<f32>() + 2 * size_of::<u32>();
+        let what = |plane: &'static str| {
+            move || {
+                format!(
+                    "the {plane} of a {width}x{height} range image ({} in all)",
+                    crate::alloc::bytes((n as u64).saturating_mul(per_pixel as u64))
+                )
+            }
+        };
+        Ok(Self {
+            width,
+            height,
+            radiance: try_filled(Vec3::ZERO, n, what("radiance"))?,
+            distance: try_filled(0.0, n, what("distances"))?,
+            object_id: try_filled(NO_HIT, n, what("object ids"))?,
+            primitive_id: try_filled(NO_HIT, n, what("primitive ids"))?,
+            normal: try_filled(Vec3::ZERO, n, what("normals"))?,
+            meta,
+        })
+    }
+
     pub fn len(&self) -> usize {
         self.width as usize * self.height as usize
     }
@@ -104,6 +130,18 @@ fn filled<T: Copy + Send + Sync>(value: T, n: usize) -> Vec<T> {
     let mut v = Vec::with_capacity(n);
     v.par_extend(rayon::iter::repeat_n(value, n));
     v
+}
+
+/// [`filled`], failing as [`crate::alloc::reserve`] does.
+fn try_filled<T: Copy + Send + Sync>(
+    value: T,
+    n: usize,
+    what: impl FnOnce() -> String,
+) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    crate::alloc::reserve(&mut v, n, what)?;
+    v.par_extend(rayon::iter::repeat_n(value, n));
+    Ok(v)
 }
 
 /// The most pixels an image may have: a range image holds about 40 bytes

@@ -10,7 +10,7 @@ use std::path::Path;
 use anyhow::{anyhow, Result};
 use rayon::prelude::*;
 
-use super::planes::{Attr, Plane, Planes};
+use super::planes::{gathered, Attr, Plane, Planes};
 use super::{Texture, MAX_PIXELS};
 
 #[cxx::bridge(namespace = "rangewalk::oiio")]
@@ -92,19 +92,22 @@ pub fn write(path: &Path, format: Format, planes: &Planes) -> Result<()> {
         channels: planes
             .channels
             .iter()
-            .map(|(name, plane)| match plane {
-                Plane::F32(v) => ffi::Channel {
-                    name: name.clone(),
-                    sample: ffi::Sample::F32,
-                    data: v.iter().map(|x| x.to_bits()).collect(),
-                },
-                Plane::U32(v) => ffi::Channel {
-                    name: name.clone(),
-                    sample: ffi::Sample::U32,
-                    data: v.clone(),
-                },
+            .map(|(name, plane)| {
+                let size = (planes.width, planes.height);
+                Ok(match plane {
+                    Plane::F32(v) => ffi::Channel {
+                        name: name.clone(),
+                        sample: ffi::Sample::F32,
+                        data: gathered(v, |x| x.to_bits(), size)?,
+                    },
+                    Plane::U32(v) => ffi::Channel {
+                        name: name.clone(),
+                        sample: ffi::Sample::U32,
+                        data: gathered(v, |&x| x, size)?,
+                    },
+                })
             })
-            .collect(),
+            .collect::<Result<_>>()?,
         integer_samples: false,
         attributes: planes
             .attributes

@@ -73,6 +73,22 @@ fn split(v: &[Vec3]) -> [Vec<f32>; 3] {
     ]
 }
 
+/// `values` gathered into a new plane by `f`, or an error saying what the
+/// copy of a `w`×`h` image for writing needs where memory is short (a
+/// frame as large as memory allows has no room for a second copy).
+pub(super) fn gathered<T, U>(
+    values: &[T],
+    f: impl Fn(&T) -> U,
+    (w, h): (u32, u32),
+) -> Result<Vec<U>> {
+    let mut plane = Vec::new();
+    crate::alloc::reserve(&mut plane, values.len(), || {
+        format!("a plane of the {w}x{h} range image's copy for writing")
+    })?;
+    plane.extend(values.iter().map(f));
+    Ok(plane)
+}
+
 impl Planes {
     /// The channels and metadata of a range image; fails when the image's
     /// per-pixel vectors or its camera disagree with its size.
@@ -100,14 +116,21 @@ impl Planes {
             cam.height
         );
 
+        let size = (w, h);
+        let xyz: [fn(&Vec3) -> f32; 3] = [|v| v.x, |v| v.y, |v| v.z];
         let mut channels = Vec::with_capacity(9);
-        for (name, plane) in RADIANCE.iter().zip(split(&image.radiance)) {
+        for (name, f) in RADIANCE.iter().zip(xyz) {
+            let plane = gathered(&image.radiance, f, size)?;
             channels.push((name.to_string(), Plane::F32(plane)));
         }
-        channels.push((DISTANCE.into(), Plane::F32(image.distance.clone())));
-        channels.push((OBJECT_ID.into(), Plane::U32(image.object_id.clone())));
-        channels.push((PRIMITIVE_ID.into(), Plane::U32(image.primitive_id.clone())));
-        for (name, plane) in NORMAL.iter().zip(split(&image.normal)) {
+        let distance = gathered(&image.distance, |&d| d, size)?;
+        channels.push((DISTANCE.into(), Plane::F32(distance)));
+        let objects = gathered(&image.object_id, |&o| o, size)?;
+        channels.push((OBJECT_ID.into(), Plane::U32(objects)));
+        let primitives = gathered(&image.primitive_id, |&p| p, size)?;
+        channels.push((PRIMITIVE_ID.into(), Plane::U32(primitives)));
+        for (name, f) in NORMAL.iter().zip(xyz) {
+            let plane = gathered(&image.normal, f, size)?;
             channels.push((name.to_string(), Plane::F32(plane)));
         }
 

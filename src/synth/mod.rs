@@ -16,6 +16,7 @@ use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
 use crate::accel::{self, InstancedEngine};
+use crate::alloc;
 use crate::bake::Bake;
 use crate::camera::Camera;
 use crate::image::{RangeImage, RangeMeta, NO_HIT};
@@ -129,6 +130,100 @@ impl Default for Options {
             supersample: 2,
             filter: Filter::Box,
         }
+    }
+}
+
+/// The most rays per side of a pixel at a light's rim ([`lights`]): 32²
+/// rays resolve the share of a pixel a light covers to a thousandth, finer
+/// than any preview or error measure shows, at about a thousand rays for
+/// each rim pixel; 100,000 asked for 10¹⁰ rays a pixel and never finished.
+pub const MAX_LIGHT_RAYS: u32 = 32;
+
+/// The most light samples a pixel takes when re-shading: three sets of
+/// shadow rays a pixel (one for the frame's time and one for each base
+/// time), so 256 traces some 200 million rays for a 512² frame, more than
+/// path tracing it at a few samples a pixel: beyond that re-shading is no
+/// longer what synthesis is for.
+pub const MAX_RESHADE_SAMPLES: u32 = 256;
+
+/// The most subpixels a frame is synthesized at: the pixels a range image
+/// may hold ([`crate::image::MAX_PIXELS`], 8192²). A subpixel's z-buffer
+/// entry alone takes 48 bytes, so this is about 3.2 GB before the frame.
+pub const MAX_SUBPIXELS: u64 = crate::image::MAX_PIXELS;
+
+impl Options {
+    /// Refuses values that make no frame or unbounded work. `name` turns a
+    /// field's name (`light_rays`) into what the caller calls it (the
+    /// flag `--light-rays`, the C field `options->light_rays`), so that
+    /// each front end reports its own names from one set of limits.
+    pub fn check(&self, name: &dyn Fn(&str) -> String) -> Result<()> {
+        ensure!(
+            self.bases > 0,
+            "{} 0: synthesis needs at least 1 base view",
+            name("bases")
+        );
+        ensure!(
+            self.tolerance > 0.0 && self.tolerance < 1.0,
+            "{} {} must lie in (0, 1): it is the relative depth difference within which samples join",
+            name("tolerance"),
+            self.tolerance
+        );
+        ensure!(
+            (1..=MAX_RESHADE_SAMPLES).contains(&self.reshade_samples),
+            "{} {} must lie in 1..={MAX_RESHADE_SAMPLES}: each sample is three shadow rays a pixel, \
+             and more than {MAX_RESHADE_SAMPLES} costs more than path tracing the frame",
+            name("reshade_samples"),
+            self.reshade_samples
+        );
+        ensure!(
+            self.light_rays <= MAX_LIGHT_RAYS,
+            "{} {} must lie in 0..={MAX_LIGHT_RAYS}: it is rays per side of each pixel at a light's rim \
+             ({}² of them), and {MAX_LIGHT_RAYS}² already resolve a pixel's share of the light to a thousandth",
+            name("light_rays"),
+            self.light_rays,
+            self.light_rays
+        );
+        ensure!(
+            (1..=MAX_SUPERSAMPLE).contains(&self.supersample),
+            "{} {} must lie in 1..={MAX_SUPERSAMPLE}",
+            name("supersample"),
+            self.supersample
+        );
+        Ok(())
+    }
+
+    /// The subpixels per side a frame is synthesized at: only splatting
+    /// fills use them (see [`Options::supersample`]).
+    pub fn subpixels_per_side(&self) -> u32 {
+        if matches!(self.fill, Fill::Foreground | Fill::Both) {
+            self.supersample
+        } else {
+            1
+        }
+    }
+
+    /// Refuses a `width` × `height` frame whose subpixels exceed
+    /// [`MAX_SUBPIXELS`]: the frame size alone does not say how much a
+    /// frame holds, its supersampling squares it. `name` as in
+    /// [`Options::check`].
+    pub fn check_frame_size(
+        &self,
+        width: u32,
+        height: u32,
+        name: &dyn Fn(&str) -> String,
+    ) -> Result<()> {
+        let k = u64::from(self.subpixels_per_side());
+        let n = u64::from(width) * k * u64::from(height) * k;
+        ensure!(
+            n <= MAX_SUBPIXELS,
+            "a {width}x{height} frame at {k}x{k} supersampling ({} {k}) is {n} subpixels, more than the \
+             {MAX_SUBPIXELS} (8192x8192) a frame may be synthesized at (about {} of z-buffer); \
+             make the frame or {} smaller",
+            name("supersample"),
+            alloc::bytes(n.saturating_mul(size_of::<Accum>() as u64)),
+            name("supersample")
+        );
+        Ok(())
     }
 }
 
@@ -294,18 +389,15 @@ impl<'a> Synthesizer<'a> {
         t: f32,
         opts: &Options,
     ) -> Result<(RangeImage, FrameStats)> {
-        ensure!(
-            (1..=MAX_SUPERSAMPLE).contains(&opts.supersample),
-            "supersampling {} must lie in 1..={MAX_SUPERSAMPLE}",
-            opts.supersample
-        );
+        let field = |f: &str| format!("options.{f}");
+        opts.check(&field)?;
+        opts.check_frame_size(camera.width, camera.height, &field)?;
         // Without splats a sample lands on one subpixel: subpixels would
         // only thin the samples out, and a background fill would give most
         // of them the farther surface beside them.
-        let splat = matches!(opts.fill, Fill::Foreground | Fill::Both);
-        let k = if splat { opts.supersample } else { 1 };
+        let k = opts.subpixels_per_side();
         if k == 1 {
-            let (image, stats) = self.subpixels(camera, t, opts, true)?;
+            let (image, stats) = self.subpixels(camera, 1, t, opts, true)?;
             return Ok((image.expect("asked for"), stats));
         }
         let fine_camera = Camera {
@@ -326,7 +418,7 @@ impl<'a> Synthesizer<'a> {
         // Re-shading works on the subpixels' surfaces; otherwise the frame
         // is averaged from the z-buffer itself.
         let reshade = opts.time_interp == TimeInterp::Reshade;
-        let (fine_image, mut stats) = self.subpixels(&fine_camera, t, &fine, reshade)?;
+        let (fine_image, mut stats) = self.subpixels(&fine_camera, k, t, &fine, reshade)?;
         let start = Instant::now();
         let poses = self.scene.at(t);
         let spare = self.spare_for(camera);
@@ -349,7 +441,7 @@ impl<'a> Synthesizer<'a> {
                         f.normal[j],
                     )
                 },
-            ),
+            )?,
             None => {
                 let meta = self.frame_meta(&fine_camera, t, opts, stats.images.len());
                 let cam = camera.position;
@@ -362,7 +454,7 @@ impl<'a> Synthesizer<'a> {
                     |j| buffer[j].radiance / buffer[j].w,
                     |j| buffer[j].object,
                     |j| surface(self.scene, &poses, cam, &buffer[j]),
-                )
+                )?
             }
         };
         if opts.light_rays > 0 && lights::shows_a_light(self.scene, &image) {
@@ -397,19 +489,17 @@ impl<'a> Synthesizer<'a> {
 
     /// The frame at the camera's own resolution, its z-buffer left in
     /// `buffers[0]`; its range image only when `image` is asked for.
+    /// `camera` is the frame's at `k` × `k` subpixels a pixel (for
+    /// messages).
     fn subpixels(
         &mut self,
         camera: &Camera,
+        k: u32,
         t: f32,
         opts: &Options,
         image: bool,
     ) -> Result<(Option<RangeImage>, FrameStats)> {
         self.scene.check_time(t)?;
-        ensure!(
-            opts.tolerance > 0.0 && opts.tolerance < 1.0,
-            "depth tolerance {} must lie in (0, 1)",
-            opts.tolerance
-        );
         let start = Instant::now();
         let load_before = self.cache.load_seconds;
         let views = self.nearest_views(camera.position, opts.bases);
@@ -476,11 +566,20 @@ impl<'a> Synthesizer<'a> {
             holes
         };
         let [mut first, mut second] = std::mem::take(&mut self.buffers);
+        let frame = if k == 1 {
+            format!("a {w}x{h} frame")
+        } else {
+            format!("a {}x{} frame at {k}x{k} supersampling", w / k, h / k)
+        };
+        let z_buffer = |which: &'static str| {
+            let frame = &frame;
+            move || format!("the {which}z-buffer of {frame}")
+        };
         // Stale contents are cleared band by band as they are projected.
-        first.resize(n, Accum::default());
+        alloc::resize(&mut first, n, Accum::default(), z_buffer(""))?;
         let pixels: Vec<Accum> = if opts.time_interp == TimeInterp::Linear {
             // pinterp per time, then pcomb: two frames blended per pixel.
-            second.resize(n, Accum::default());
+            alloc::resize(&mut second, n, Accum::default(), z_buffer("second "))?;
             let passes = |later: bool| -> Vec<Pass> {
                 bases
                     .iter()
@@ -572,7 +671,7 @@ impl<'a> Synthesizer<'a> {
             return Ok((None, stats));
         }
         let spare = self.spare_for(camera);
-        let mut image = blank(spare, self.frame_meta(camera, t, opts, bases.len()));
+        let mut image = blank(spare, self.frame_meta(camera, t, opts, bases.len()))?;
         write_pixels(self.scene, &poses_t, &pixels, &mut image);
         if opts.time_interp == TimeInterp::Reshade {
             let scene = self.scene;
@@ -670,14 +769,14 @@ fn downsample(
     radiance: impl Fn(usize) -> Vec3 + Sync,
     object: impl Fn(usize) -> u32 + Sync,
     surface: impl Fn(usize) -> (f32, u32, u32, Vec3) + Sync,
-) -> (RangeImage, usize) {
+) -> Result<(RangeImage, usize)> {
     let mut image = blank(
         spare,
         RangeMeta {
             camera: *camera,
             ..meta.clone()
         },
-    );
+    )?;
     let (w, k) = (camera.width as usize, k as usize);
     let fw = w * k;
     let emissive = lights::emissive(scene);
@@ -732,7 +831,7 @@ fn downsample(
             },
         )
         .sum();
-    (image, holes)
+    Ok((image, holes))
 }
 
 /// Distance along pixel `(x, y)`'s centre ray to the plane of `object`'s
@@ -782,11 +881,12 @@ fn blend_linear(a: &Accum, b: &Accum) -> Accum {
 }
 
 /// An image with `meta`, `spare`'s planes where given (stale: the caller
-/// writes every pixel).
-fn blank(spare: Option<RangeImage>, meta: RangeMeta) -> RangeImage {
+/// writes every pixel); an error saying what it needs where memory is
+/// short.
+fn blank(spare: Option<RangeImage>, meta: RangeMeta) -> Result<RangeImage> {
     match spare {
-        Some(image) => RangeImage { meta, ..image },
-        None => RangeImage::empty(meta),
+        Some(image) => Ok(RangeImage { meta, ..image }),
+        None => RangeImage::try_empty(meta),
     }
 }
 

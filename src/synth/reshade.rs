@@ -106,10 +106,21 @@ pub fn direct_then(
 ) -> Result<Vec<Vec3>> {
     let shading = SurfaceShading::new(scene, engine, then);
     let back = motions_back(scene, t, then);
-    let rows = pixels
-        .par_chunks(width)
+    // Written row by row in place: one frame-sized plane for each base
+    // time, which may be more than memory holds.
+    let mut out = Vec::new();
+    crate::alloc::resize(&mut out, pixels.len(), Vec3::ZERO, || {
+        format!(
+            "re-shading a frame of {} pixels ({}x{}): the light at base time {then}",
+            pixels.len(),
+            width,
+            pixels.len() / width.max(1)
+        )
+    })?;
+    out.par_chunks_mut(width)
+        .zip(pixels.par_chunks(width))
         .enumerate()
-        .map(|(y, acc)| -> Result<Vec<Vec3>> {
+        .try_for_each(|(y, (row, acc))| -> Result<()> {
             let (mut points, mut streams, mut at) = (Vec::new(), Vec::new(), Vec::new());
             for (x, a) in acc.iter().enumerate() {
                 if let Some(sp) = surface_point(a, cam, Some(&back)) {
@@ -120,14 +131,12 @@ pub fn direct_then(
             }
             let direct =
                 shading.diffuse_direct(&points, &streams, opts.reshade_samples, opts.seed)?;
-            let mut row = vec![Vec3::ZERO; acc.len()];
             for (x, d) in at.into_iter().zip(direct) {
                 row[x] = d;
             }
-            Ok(row)
-        })
-        .collect::<Result<Vec<_>>>()?;
-    Ok(rows.concat())
+            Ok(())
+        })?;
+    Ok(out)
 }
 
 /// The light of `pixel` at its blend's mean base time `tau`, from the

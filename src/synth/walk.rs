@@ -86,6 +86,37 @@ pub struct WalkSummary {
     pub out: PathBuf,
 }
 
+/// The most frames one walk writes. Each is a range image and a preview
+/// named `frame-NNNN` (four digits, so that they sort in order) and its
+/// preview is kept for the animated `walk.png`; 10,000 frames is over five
+/// minutes at 30 frames/s. `--fps 1e6` set out to write two million.
+pub const MAX_WALK_FRAMES: usize = 10_000;
+
+/// The frame times of a walk over `span` at `fps` ([`frame_times`]),
+/// refusing a rate that is not a positive number or that makes more than
+/// [`MAX_WALK_FRAMES`] frames, before any is made. `given` says whether
+/// `fps` came from `--fps` (else it is the scene's).
+pub fn walk_times(span: (f32, f32), fps: f32, given: bool) -> Result<Vec<f32>> {
+    let source = if given {
+        format!("--fps {fps}")
+    } else {
+        format!("the scene's frame rate {fps} (animation.fps; --fps overrides it)")
+    };
+    ensure!(
+        fps.is_finite() && fps > 0.0,
+        "{source} must be a positive number"
+    );
+    let frames = (f64::from(span.1) - f64::from(span.0)) * f64::from(fps);
+    let frames = frames.round().max(0.0) + 1.0;
+    ensure!(
+        frames <= MAX_WALK_FRAMES as f64,
+        "{source} over the path's {} s makes {frames} frames, more than the {MAX_WALK_FRAMES} a walk \
+         writes (frame-0000 to frame-9999); give a lower --fps or a shorter path",
+        span.1 - span.0
+    );
+    Ok(frame_times(span, fps))
+}
+
 /// Frame times of a path at `fps`: from its first key to its last.
 pub fn frame_times(span: (f32, f32), fps: f32) -> Vec<f32> {
     let n = ((span.1 - span.0) * fps).round().max(0.0) as usize + 1;
@@ -106,11 +137,8 @@ pub fn walk(
     let scene = synth.scene;
     let path = scene.path(&settings.path)?.clone();
     let fps = settings.fps.unwrap_or(scene.animation.fps);
-    ensure!(
-        fps.is_finite() && fps > 0.0,
-        "--fps {fps} must be a positive number"
-    );
-    let times = frame_times(path.span(), fps);
+    let times = walk_times(path.span(), fps, settings.fps.is_some())
+        .with_context(|| format!("walking path `{}`", path.name))?;
     let mut warnings = Vec::new();
     for k in &path.keys {
         if let Some(w) = view_space_warning(
@@ -248,5 +276,29 @@ mod tests {
         assert_eq!(frame_times((0.0, 1.0), 4.0), [0.0, 0.25, 0.5, 0.75, 1.0]);
         assert_eq!(frame_times((2.0, 2.0), 30.0), [2.0]);
         assert_eq!(frame_times((0.0, 1.0), 30.0).len(), 31);
+    }
+
+    #[test]
+    fn a_walk_of_too_many_frames_is_refused_before_any() {
+        assert_eq!(walk_times((0.0, 1.0), 4.0, true).unwrap().len(), 5);
+        // 9,999 s at 1 frame/s is the most: frames 0 to 9,999.
+        assert_eq!(walk_times((0.0, 9999.0), 1.0, true).unwrap().len(), 10_000);
+        let msg = walk_times((0.0, 10_000.0), 1.0, true)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("--fps 1 ") && msg.contains("10001 frames"),
+            "{msg}"
+        );
+        let msg = walk_times((0.0, 2.0), 1e6, false).unwrap_err().to_string();
+        assert!(
+            msg.contains("scene's frame rate 1000000") && msg.contains("2000001 frames"),
+            "{msg}"
+        );
+        for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+            assert!(walk_times((0.0, 1.0), bad, true).is_err(), "{bad}");
+        }
+        // A rate whose frame count overflows any integer.
+        assert!(walk_times((0.0, 1.0), f32::MAX, true).is_err());
     }
 }

@@ -15,6 +15,12 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+/* For limits_and_outputs. */
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <sys/statvfs.h>
+#include <unistd.h>
 
 static int failures = 0;
 static int checks = 0;
@@ -139,6 +145,125 @@ static void concurrent_bakes(rw_scene *scene, const rw_bake_options *tiny, const
     pthread_mutex_destroy(&h.mutex);
 }
 /* End of concurrent bakes. */
+
+/* ---- Limits of work and outputs that cannot be written ------------------
+ * Counts that set the work of a pixel are bounded (light rays per side of
+ * a rim pixel, re-shading samples, a frame's subpixels), whatever the
+ * caller sets; a bake into a folder that cannot be made, or onto a full
+ * disk, fails with RW_IO naming the file and leaves no file under a final
+ * name that is not whole. The full disk is the tmpfs the Makefile mounts
+ * at $RW_FULL_DIR (capi-test); without it this test fails. */
+
+/* Fills the file system of `dir` until at most `leave` bytes are free,
+ * with a file `filler` in it; returns 0 on success. */
+static int fill_disk(const char *dir, unsigned long long leave) {
+    char path[1024];
+    snprintf(path, sizeof path, "%s/filler", dir);
+    int fd = open(path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0) return -1;
+    static char block[4096];
+    for (;;) {
+        struct statvfs vfs;
+        if (fstatvfs(fd, &vfs) != 0) break;
+        if ((unsigned long long)vfs.f_bavail * vfs.f_bsize <= leave) break;
+        if (write(fd, block, sizeof block) != (ssize_t)sizeof block) break; /* ENOSPC */
+    }
+    close(fd);
+    return 0;
+}
+
+/* Whether every file under `dir` (recursively) is whole as far as a name
+ * tells: no empty file under a final name, and no temporary left. */
+static int nothing_half_written(const char *dir) {
+    DIR *d = opendir(dir);
+    if (!d) return errno == ENOENT;
+    int ok = 1;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, "..")) continue;
+        char path[2048];
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        struct stat st;
+        if (stat(path, &st) != 0) continue;
+        if (S_ISDIR(st.st_mode)) {
+            ok &= nothing_half_written(path);
+        } else if (strstr(e->d_name, ".partial") || (e->d_name[0] != '.' && st.st_size == 0)) {
+            fprintf(stderr, "left behind: %s (%lld bytes)\n", path, (long long)st.st_size);
+            ok = 0;
+        }
+    }
+    closedir(d);
+    return ok;
+}
+
+static void limits_and_outputs(rw_scene *scene, rw_bake *bake, const rw_view *view,
+                               const rw_bake_options *tiny) {
+    enum { W = 8, H = 6 };
+    float rgb[W * H * 3];
+    fill(rgb, W * H * 3);
+    rw_synth_options defaults, so;
+    EXPECT(rw_synth_options_default(&defaults), RW_OK, NULL);
+    so = defaults;
+    so.light_rays = 100000;
+    EXPECT(rw_synth_with(bake, view, 0.5f, W, H, &so, rgb, NULL), RW_INVALID_ARGUMENT,
+           "options->light_rays 100000 must lie in 0..=32");
+    so.light_rays = 33;
+    EXPECT(rw_synth_with(bake, view, 0.5f, W, H, &so, rgb, NULL), RW_INVALID_ARGUMENT,
+           "options->light_rays 33");
+    so = defaults;
+    so.reshade_samples = 257;
+    EXPECT(rw_synth_with(bake, view, 0.5f, W, H, &so, rgb, NULL), RW_INVALID_ARGUMENT,
+           "options->reshade_samples 257 must lie in 1..=256");
+    so = defaults;
+    so.supersample = 0;
+    EXPECT(rw_synth_with(bake, view, 0.5f, W, H, &so, rgb, NULL), RW_INVALID_ARGUMENT,
+           "options->supersample 0");
+    /* 8192 x 8192 is within the sides a frame may have, but at the
+     * default 2 x 2 subpixels it is 268 M of them (12.9 GB of z-buffer). */
+    EXPECT(rw_synth_with(bake, view, 0.5f, 8192, 8192, &defaults, rgb, NULL), RW_INVALID_ARGUMENT,
+           "268435456 subpixels");
+    CHECK(untouched(rgb, W * H * 3));
+    /* The largest counts allowed make a frame. */
+    so = defaults;
+    so.light_rays = 32;
+    so.reshade_samples = 256;
+    so.time_interp = RW_TIME_INTERP_RESHADE;
+    EXPECT(rw_synth_with(bake, view, 0.5f, W, H, &so, rgb, NULL), RW_OK, NULL);
+    CHECK(!untouched(rgb, W * H * 3));
+
+    /* A folder that cannot be made. */
+    const char *proc = "/proc/rangewalk-bake";
+    EXPECT(rw_bake_run(scene, tiny, proc, NULL, NULL), RW_IO, proc);
+    struct stat st;
+    CHECK(stat(proc, &st) != 0);
+
+    /* A full disk, then ones with room for a few pages only (the images
+     * are a page each, no radiosity store is written): whichever file the
+     * space runs out in, the error names a file under the bake and nothing
+     * half written remains. */
+    const char *full = getenv("RW_FULL_DIR");
+    CHECK(full != NULL && *full);
+    if (!full || !*full) {
+        fprintf(stderr, "RW_FULL_DIR is not set: run this test through `make capi-test`\n");
+        return;
+    }
+    char dir[1024];
+    snprintf(dir, sizeof dir, "%s/bake", full);
+    rw_bake_options traced = *tiny;
+    traced.indirect = RW_INDIRECT_PATH;
+    for (unsigned long long leave = 0; leave <= 24 * 1024; leave += 4 * 1024) {
+        CHECK(fill_disk(full, leave) == 0);
+        EXPECT(rw_bake_run(scene, &traced, dir, NULL, NULL), RW_IO, dir);
+        CHECK(strstr(last_error(), "space left") != NULL);
+        CHECK(nothing_half_written(full));
+        rw_bake *opened = NULL;
+        CHECK(rw_bake_open(dir, &opened) != RW_OK && opened == NULL);
+        char cmd[2200];
+        snprintf(cmd, sizeof cmd, "rm -rf '%s' '%s/filler'", dir, full);
+        CHECK(system(cmd) == 0);
+    }
+}
+/* ---- end of limits and outputs ---- */
 
 int main(int argc, char **argv) {
     if (argc != 5) {
@@ -347,6 +472,7 @@ int main(int argc, char **argv) {
     so.struct_size = 8;
     EXPECT(rw_synth_with(bake, &view, 0.5f, W, H, &so, rgb, NULL), RW_OK, NULL);
     CHECK(!untouched(rgb, W * H * 3) && untouched(distance, W * H));
+    limits_and_outputs(scene, bake, &view, &tiny);
     rw_bake_free(bake);
 
     /* A panic inside the library becomes RW_PANIC, and the library goes on. */

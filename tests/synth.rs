@@ -699,6 +699,9 @@ fn a_walk_writes_every_frame_an_animation_and_a_summary() {
         "3",
         "--check-spp",
         "4",
+        // A negative exposure is a value, not a flag.
+        "--exposure",
+        "-1",
         "--out",
         out.to_str().unwrap(),
     ]);
@@ -741,6 +744,11 @@ fn a_walk_writes_every_frame_an_animation_and_a_summary() {
     assert!(
         apng.windows(4).any(|w| w == b"acTL"),
         "walk.png is animated"
+    );
+    assert_eq!(
+        apng.windows(4).filter(|w| w == b"fcTL").count(),
+        5,
+        "walk.png holds every frame"
     );
 }
 

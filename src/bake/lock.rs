@@ -236,18 +236,24 @@ impl Setup {
             me.pid,
             SEQUENCE.fetch_add(1, Ordering::Relaxed)
         ));
-        let mut file = OpenOptions::new()
+        let file = OpenOptions::new()
             .read(true)
             .write(true)
             .create(true)
             .truncate(true)
             .open(&path)
             .with_context(|| format!("creating {}", path.display()))?;
-        file.try_lock()
+        // Removed again if what follows fails (a full disk): a file no run
+        // holds would only be cleaned up by a later run.
+        let mut running = Running { path, file };
+        running
+            .file
+            .try_lock()
             .map_err(|e| anyhow::anyhow!("{e}"))
-            .with_context(|| format!("locking {}", path.display()))?;
-        write_holder(&mut file, me).with_context(|| format!("writing {}", path.display()))?;
-        Ok(Running { path, _file: file })
+            .with_context(|| format!("locking {}", running.path.display()))?;
+        write_holder(&mut running.file, me)
+            .with_context(|| format!("writing {}", running.path.display()))?;
+        Ok(running)
     }
 
     /// Removes the temporary files that killed runs left in the bake (see
@@ -285,7 +291,8 @@ impl Drop for Setup {
 #[derive(Debug)]
 pub struct Running {
     path: PathBuf,
-    _file: File,
+    /// Locked for the run's life: a file no one holds is a dead run's.
+    file: File,
 }
 
 impl Drop for Running {

@@ -73,7 +73,7 @@ pub struct SynthOptions {
     #[arg(long, default_value_t = DEFAULT_BUDGET >> 20)]
     pub base_memory: usize,
     /// Exposure of previews in stops.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f32,
 }
 

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use crate::output::{check_only, Contents};
+use crate::output::{check_only, entries, Contents};
 
 /// The folder of cached references inside an output folder.
 pub const REFERENCE_DIR: &str = "reference";
@@ -123,16 +123,6 @@ fn is_cache(entry: &Path) -> bool {
         && entry
             .file_name()
             .is_some_and(|n| CACHES.iter().any(|c| n == *c))
-}
-
-fn entries(dir: &Path) -> Result<Vec<PathBuf>> {
-    std::fs::read_dir(dir)
-        .with_context(|| format!("reading {}", dir.display()))?
-        .map(|e| {
-            Ok(e.with_context(|| format!("reading {}", dir.display()))?
-                .path())
-        })
-        .collect()
 }
 
 #[cfg(test)]

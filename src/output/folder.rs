@@ -174,7 +174,8 @@ fn empty(dir: &Path, contents: &Contents) -> Result<()> {
     std::fs::remove_dir(dir).with_context(|| format!("removing {}", dir.display()))
 }
 
-fn entries(dir: &Path) -> Result<Vec<PathBuf>> {
+/// The paths of `dir`'s entries, in no particular order.
+pub fn entries(dir: &Path) -> Result<Vec<PathBuf>> {
     std::fs::read_dir(dir)
         .with_context(|| format!("reading {}", dir.display()))?
         .map(|e| {

@@ -12,4 +12,4 @@ mod folder;
 
 pub use check::{check_output, check_output_dir, OutputKind};
 pub use file::{temporary_for, write_file, write_with};
-pub use folder::{check_only, numbered, Contents, Folder};
+pub use folder::{check_only, entries, numbered, Contents, Folder};

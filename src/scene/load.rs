@@ -185,7 +185,7 @@ impl Source<'_> {
 
 pub fn load(path: PathBuf) -> Result<Scene> {
     if let Some(why) = not_a_file(&path) {
-        bail!("scene file {} {why}", path.display());
+        return Err(unreadable(format!("scene file {} {why}", path.display())));
     }
     let text = std::fs::read_to_string(&path)
         .with_context(|| format!("cannot read scene file {}", path.display()))?;
@@ -255,11 +255,11 @@ pub fn load(path: PathBuf) -> Result<Scene> {
         let mesh_path = dir.join(&o.mesh);
         if !obj_files.contains_key(&mesh_path) {
             if let Some(why) = not_a_file(&mesh_path) {
-                bail!(
+                return Err(unreadable(format!(
                     "{at}: object `{}`: `mesh` {} {why}",
                     o.name,
                     mesh_path.display()
-                );
+                )));
             }
             obj_files.insert(mesh_path.clone(), ObjFile::read(&mesh_path, &mut warnings)?);
         }
@@ -439,6 +439,12 @@ fn not_a_file(path: &Path) -> Option<String> {
     }
 }
 
+/// A file that cannot be read, as the I/O error it is, so that front ends
+/// tell it from a scene that is wrong (the C API's `RW_IO`).
+fn unreadable(message: String) -> anyhow::Error {
+    std::io::Error::other(message).into()
+}
+
 /// The OS error of following too many symbolic links.
 const ELOOP: i32 = if cfg!(target_os = "linux") { 40 } else { 62 };
 
@@ -605,7 +611,10 @@ fn build_material(at: &str, m: &MaterialToml, dir: &Path) -> Result<Material> {
 /// reflectance is known.
 fn read_texture(what: &str, field: &str, path: &Path) -> Result<Arc<Texture>> {
     if let Some(why) = not_a_file(path) {
-        bail!("{what}: `{field}` {} {why}", path.display());
+        return Err(unreadable(format!(
+            "{what}: `{field}` {} {why}",
+            path.display()
+        )));
     }
     let tex = crate::image::read_texture(path).with_context(|| format!("{what}: `{field}`"))?;
     ensure!(

@@ -158,7 +158,12 @@ pub fn walk(
     );
     let start = Instant::now();
     let mut stats: Vec<FrameStats> = Vec::with_capacity(times.len());
-    let mut previews: Vec<Vec<u8>> = Vec::with_capacity(times.len());
+    let mut animation = Animation::start(
+        &staging.join("walk.png"),
+        (settings.width, settings.height),
+        fps,
+        times.len(),
+    )?;
     let mut checks = Vec::new();
     for (i, &t) in times.iter().enumerate() {
         let desc = path.at(t);
@@ -177,7 +182,7 @@ pub fn walk(
             &frame.radiance,
             settings.exposure,
         )?;
-        previews.push(image::tonemap_srgb8(&frame.radiance, settings.exposure));
+        animation.push(&image::tonemap_srgb8(&frame.radiance, settings.exposure))?;
         if let Some(c) = checker.as_mut().filter(|c| c.wants(i, times.len())) {
             bar.set_message(format!("checking frame {i}"));
             checks.push(c.check(synth, i, t, &camera, &frame, &staging)?);
@@ -191,13 +196,7 @@ pub fn walk(
         synth.recycle(frame);
     }
     bar.finish_and_clear();
-    write_apng(
-        &staging.join("walk.png"),
-        settings.width,
-        settings.height,
-        fps,
-        &previews,
-    )?;
+    animation.finish()?;
     if let Some(c) = checker {
         c.finish(&staging, settings.exposure)?;
     }
@@ -239,24 +238,44 @@ pub const CONTENTS: Contents = Contents {
     },
 };
 
-/// An animated PNG of the previews, playing at `fps`.
-fn write_apng(path: &Path, width: u32, height: u32, fps: f32, frames: &[Vec<u8>]) -> Result<()> {
-    let write = || -> Result<()> {
-        let file = fs::File::create(path)?;
-        let mut enc = png::Encoder::new(BufWriter::new(file), width, height);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        enc.set_animated(frames.len().max(1) as u32, 0)?;
-        // Delay as a fraction: 1000 / (fps * 1000) s.
-        enc.set_frame_delay(1000, (fps * 1000.0).round().clamp(1.0, 65535.0) as u16)?;
-        let mut writer = enc.write_header()?;
-        for f in frames {
-            writer.write_image_data(f)?;
-        }
-        writer.finish()?;
-        Ok(())
-    };
-    write().with_context(|| format!("writing {}", path.display()))
+/// The animated PNG of a walk's previews, written frame by frame as they
+/// are made: a long walk holds none of them in memory.
+struct Animation {
+    path: PathBuf,
+    writer: png::Writer<BufWriter<fs::File>>,
+}
+
+impl Animation {
+    /// Starts `path` for `frames` frames of `size`, playing at `fps`.
+    fn start(path: &Path, size: (u32, u32), fps: f32, frames: usize) -> Result<Animation> {
+        let start = || -> Result<png::Writer<BufWriter<fs::File>>> {
+            let file = fs::File::create(path)?;
+            let mut enc = png::Encoder::new(BufWriter::new(file), size.0, size.1);
+            enc.set_color(png::ColorType::Rgb);
+            enc.set_depth(png::BitDepth::Eight);
+            enc.set_animated(u32::try_from(frames.max(1))?, 0)?;
+            // Delay as a fraction: 1000 / (fps * 1000) s.
+            enc.set_frame_delay(1000, (fps * 1000.0).round().clamp(1.0, 65535.0) as u16)?;
+            Ok(enc.write_header()?)
+        };
+        Ok(Animation {
+            path: path.to_path_buf(),
+            writer: start().with_context(|| format!("writing {}", path.display()))?,
+        })
+    }
+
+    /// Appends one frame's 8-bit RGB pixels.
+    fn push(&mut self, rgb: &[u8]) -> Result<()> {
+        self.writer
+            .write_image_data(rgb)
+            .with_context(|| format!("writing {}", self.path.display()))
+    }
+
+    fn finish(self) -> Result<()> {
+        self.writer
+            .finish()
+            .with_context(|| format!("writing {}", self.path.display()))
+    }
 }
 
 /// The process's peak resident set size (Linux: `VmHWM`).

@@ -220,8 +220,8 @@ typedef struct {
   float tolerance;
   // Farthest a background fill carries a value, in pixels (at most 65535).
   uint32_t fill_reach;
-  // Light samples per pixel when re-shading, 1 to 256 (each is three
-  // shadow rays a pixel).
+  // Light samples per pixel when re-shading, where the light changed
+  // since the base times, 1 to 256 (each is three shadow rays a pixel).
   uint32_t reshade_samples;
   // Rays per side of a pixel at or beside a light, 0 to 32 (32² rays
   // resolve a pixel's share of a light to a thousandth); 0 keeps lights

@@ -58,8 +58,8 @@ pub struct rw_synth_options {
     pub tolerance: f32,
     /// Farthest a background fill carries a value, in pixels (at most 65535).
     pub fill_reach: u32,
-    /// Light samples per pixel when re-shading, 1 to 256 (each is three
-    /// shadow rays a pixel).
+    /// Light samples per pixel when re-shading, where the light changed
+    /// since the base times, 1 to 256 (each is three shadow rays a pixel).
     pub reshade_samples: u32,
     /// Rays per side of a pixel at or beside a light, 0 to 32 (32² rays
     /// resolve a pixel's share of a light to a thousandth); 0 keeps lights

@@ -184,7 +184,10 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
     }
     let mut extra = String::new();
     if options.time_interp == TimeInterp::Reshade {
-        extra += &format!(", {} mirror pixel(s) no base showed", stats.mirror_misses);
+        extra += &format!(
+            ", {} pixel(s) whose light changed since the base times re-shaded with {} light samples, {} mirror pixel(s) no base showed",
+            stats.reshaded, options.reshade_samples, stats.mirror_misses
+        );
     }
     if options.blend == Blend::Nearest {
         extra += &format!(

@@ -98,7 +98,9 @@ pub struct Options {
     pub tolerance: f32,
     /// Farthest a background fill carries a value, in pixels.
     pub fill_reach: u16,
-    /// Light samples per pixel when re-shading.
+    /// Light samples per pixel when re-shading, where the light changed
+    /// since the base times (elsewhere [`reshade::FIND_SAMPLES`] find that
+    /// it did not).
     pub reshade_samples: u32,
     /// Rays per side of a pixel at or beside a light ([`lights`]); 0: none.
     pub light_rays: u32,
@@ -124,7 +126,7 @@ impl Default for Options {
             blend: Blend::Average,
             tolerance: 0.02,
             fill_reach: 32,
-            reshade_samples: 4,
+            reshade_samples: 64,
             light_rays: 8,
             seed: 1,
             supersample: 2,
@@ -247,6 +249,9 @@ pub struct FrameStats {
     pub mirror_misses: usize,
     /// Pixels at or beside lights traced again.
     pub light_pixels: usize,
+    /// Pixels whose direct light changed since the base times (and their
+    /// neighbours), re-shaded with all of `reshade_samples`.
+    pub reshaded: usize,
     /// Base pixels nearest-first blending did not project because the
     /// frame already held nearer or equal samples wherever they could land
     /// (counted once for every band of the frame they were left out of).
@@ -467,6 +472,7 @@ impl<'a> Synthesizer<'a> {
         stats.filled = per_pixel(stats.filled);
         stats.sky = per_pixel(stats.sky);
         stats.mirror_misses = per_pixel(stats.mirror_misses);
+        stats.reshaded = per_pixel(stats.reshaded);
         stats.seconds += start.elapsed().as_secs_f64();
         Ok((image, stats))
     }
@@ -678,13 +684,44 @@ impl<'a> Synthesizer<'a> {
             let mut times: Vec<f32> = bases.iter().map(|b| b.time).collect();
             times.sort_by(f32::total_cmp);
             times.dedup();
-            let mut then = Vec::with_capacity(times.len());
             let (w, cam) = (camera.width as usize, camera.position);
+            // Every pixel first takes a few samples at every time, which
+            // find where the light changed; there the frame's and the base
+            // times' light are drawn again with all of `reshade_samples`.
+            let find = reshade::FIND_SAMPLES.div_ceil(k * k);
+            let plane = |what: &str| reshade::light_plane(pixels.len(), w, what);
+            let mut now = plane("the frame's time")?;
+            let mut then = Vec::with_capacity(times.len());
             for &time in &times {
+                then.push(plane(&format!("base time {time}"))?);
+            }
+            for (i, time) in std::iter::once(t).chain(times.iter().copied()).enumerate() {
                 let engine = &*self.engine_at(time)?;
-                then.push(reshade::direct_then(
-                    scene, engine, t, time, &pixels, w, cam, opts,
-                )?);
+                let out = if i == 0 { &mut now } else { &mut then[i - 1] };
+                reshade::direct_at(
+                    scene, engine, t, time, &pixels, w, cam, find, opts.seed, None, out,
+                )?;
+            }
+            if opts.reshade_samples > find {
+                let changed = reshade::changed(&now, &then, w, k as usize);
+                stats.reshaded = changed.iter().filter(|&&c| c).count();
+                for (i, time) in std::iter::once(t).chain(times.iter().copied()).enumerate() {
+                    let engine = &*self.engine_at(time)?;
+                    let out = if i == 0 { &mut now } else { &mut then[i - 1] };
+                    reshade::direct_at(
+                        scene,
+                        engine,
+                        t,
+                        time,
+                        &pixels,
+                        w,
+                        cam,
+                        opts.reshade_samples,
+                        opts.seed,
+                        Some(&changed),
+                        out,
+                    )?;
+                }
             }
             let engine = &*self.engine_at(t)?;
             stats.mirror_misses = reshade::apply(
@@ -695,6 +732,7 @@ impl<'a> Synthesizer<'a> {
                 &wanted.iter().map(|w| w.1).collect::<Vec<_>>(),
                 &pixels,
                 &times,
+                &now,
                 &then,
                 opts,
                 &mut image,

@@ -31,6 +31,13 @@ use crate::image::RangeImage;
 use crate::render::surface::{Reflected, SurfacePoint, SurfaceShading};
 use crate::scene::{Bsdf, Scene};
 
+/// Light samples every frame pixel takes at the frame's time and at each
+/// base time to find whether its light changed. Where it did not, the
+/// correction is zero whatever the count; where it did, these few would
+/// leave salt and pepper in a moved shadow (one sample a subpixel lit or
+/// not), so those pixels take all of `reshade_samples`.
+pub const FIND_SAMPLES: u32 = 4;
+
 /// Per object: the motion from the frame's time `t` back to `then`.
 fn motions_back(scene: &Scene, t: f32, then: f32) -> Vec<Affine3A> {
     scene
@@ -90,11 +97,14 @@ fn on_own_ray(
     }
 }
 
-/// The diffuse direct light of every frame pixel at base time `then`
-/// (its point moved there with its object), drawn with the samples the
-/// frame's own time draws; `engine` holds the scene posed at `then`.
+/// The diffuse direct light of frame pixels at time `then` (their points
+/// moved there with their objects; `then == t`: the frame's own time),
+/// `samples` light samples each, drawn from each pixel's own sampler
+/// stream so that every time draws the same ones; `engine` holds the scene
+/// posed at `then`. Only the pixels `only` marks are shaded (all without
+/// it); the others are left as `out` holds them.
 #[allow(clippy::too_many_arguments)]
-pub fn direct_then(
+pub fn direct_at(
     scene: &Scene,
     engine: &dyn RayEngine,
     t: f32,
@@ -102,41 +112,94 @@ pub fn direct_then(
     pixels: &[Accum],
     width: usize,
     cam: Vec3,
-    opts: &Options,
-) -> Result<Vec<Vec3>> {
+    samples: u32,
+    seed: u64,
+    only: Option<&[bool]>,
+    out: &mut [Vec3],
+) -> Result<()> {
     let shading = SurfaceShading::new(scene, engine, then);
     let back = motions_back(scene, t, then);
-    // Written row by row in place: one frame-sized plane for each base
-    // time, which may be more than memory holds.
-    let mut out = Vec::new();
-    crate::alloc::resize(&mut out, pixels.len(), Vec3::ZERO, || {
-        format!(
-            "re-shading a frame of {} pixels ({}x{}): the light at base time {then}",
-            pixels.len(),
-            width,
-            pixels.len() / width.max(1)
-        )
-    })?;
     out.par_chunks_mut(width)
         .zip(pixels.par_chunks(width))
         .enumerate()
         .try_for_each(|(y, (row, acc))| -> Result<()> {
             let (mut points, mut streams, mut at) = (Vec::new(), Vec::new(), Vec::new());
             for (x, a) in acc.iter().enumerate() {
+                let k = y * width + x;
+                if only.is_some_and(|o| !o[k]) || is_mirror(scene, a) {
+                    continue;
+                }
                 if let Some(sp) = surface_point(a, cam, Some(&back)) {
                     points.push(sp);
-                    streams.push((y * width + x) as u64);
+                    streams.push(k as u64);
                     at.push(x);
                 }
             }
-            let direct =
-                shading.diffuse_direct(&points, &streams, opts.reshade_samples, opts.seed)?;
+            let direct = shading.diffuse_direct(&points, &streams, samples, seed)?;
             for (x, d) in at.into_iter().zip(direct) {
                 row[x] = d;
             }
             Ok(())
-        })?;
+        })
+}
+
+/// A frame-sized plane of light, allocated fallibly: one is kept for the
+/// frame's time and one for each base time, which may be more than memory
+/// holds.
+pub fn light_plane(len: usize, width: usize, what: &str) -> Result<Vec<Vec3>> {
+    let mut out = Vec::new();
+    crate::alloc::resize(&mut out, len, Vec3::ZERO, || {
+        format!(
+            "re-shading a frame of {len} pixels ({width}x{}): the light at {what}",
+            len / width.max(1)
+        )
+    })?;
     Ok(out)
+}
+
+fn is_mirror(scene: &Scene, a: &Accum) -> bool {
+    !a.is_empty() && a.z < SKY_Z && matches!(scene.material_of(a.object).bsdf, Bsdf::Mirror { .. })
+}
+
+/// Which pixels' light changed between some base time and the frame's:
+/// the few samples every pixel takes find where a shadow moved or a
+/// surface turned, and only there do more samples pay. A pixel whose
+/// samples all agreed may still lie in a penumbra that moved (its few
+/// samples happened to miss the occluder at both times), so the pixels
+/// within `reach` of a changed one are taken too: moved shadows are
+/// contiguous, a changed pixel's neighbours are where the rest of it is.
+/// A change below a hundredth of the light is rounding in a moved point,
+/// not a moved shadow.
+pub fn changed(now: &[Vec3], then: &[Vec<Vec3>], width: usize, reach: usize) -> Vec<bool> {
+    let height = now.len() / width.max(1);
+    let seed: Vec<bool> = (0..now.len())
+        .into_par_iter()
+        .map(|k| {
+            let a = luminance(now[k]);
+            then.iter().any(|th| {
+                let b = luminance(th[k]);
+                (a - b).abs() > 0.01 * a.max(b)
+            })
+        })
+        .collect();
+    // Dilated by rows, then by columns (a square of side 2 reach + 1).
+    let mut rows = vec![false; now.len()];
+    rows.par_chunks_mut(width)
+        .zip(seed.par_chunks(width))
+        .for_each(|(out, row)| {
+            for (x, o) in out.iter_mut().enumerate() {
+                let (a, b) = (x.saturating_sub(reach), (x + reach + 1).min(width));
+                *o = row[a..b].iter().any(|&c| c);
+            }
+        });
+    let mut out = vec![false; now.len()];
+    out.par_chunks_mut(width).enumerate().for_each(|(y, o)| {
+        let (a, b) = (y.saturating_sub(reach), (y + reach + 1).min(height));
+        for (x, o) in o.iter_mut().enumerate() {
+            *o = (a..b).any(|yy| rows[yy * width + x]);
+        }
+    });
+    out
 }
 
 /// The light of `pixel` at its blend's mean base time `tau`, from the
@@ -151,7 +214,8 @@ fn at_mean_time(times: &[f32], then: &[Vec<Vec3>], pixel: usize, tau: f32) -> Ve
 }
 
 /// Re-shades `image` (made from `pixels`); `engine` holds the scene posed
-/// at `t`, `then[i]` is [`direct_then`] at base time `times[i]`. Returns
+/// at `t`, `now` is [`direct_at`] the frame's time and `then[i]` at base
+/// time `times[i]`. Returns
 /// the number of mirror pixels whose reflection no base showed (they keep
 /// their projected radiance).
 #[allow(clippy::too_many_arguments)]
@@ -163,6 +227,7 @@ pub fn apply(
     weights: &[f32],
     pixels: &[Accum],
     times: &[f32],
+    now: &[Vec3],
     then: &[Vec<Vec3>],
     opts: &Options,
     image: &mut RangeImage,
@@ -182,7 +247,6 @@ pub fn apply(
         .zip(pixels.par_chunks(w))
         .enumerate()
         .map(|(y, (row, acc))| -> Result<usize> {
-            let (mut points, mut streams, mut at) = (Vec::new(), Vec::new(), Vec::new());
             let mut misses = 0;
             for (x, a) in acc.iter().enumerate() {
                 let Some(mut sp) = surface_point(a, cam, None) else {
@@ -220,15 +284,9 @@ pub fn apply(
                     }
                     continue;
                 }
-                points.push(sp);
-                streams.push((y * w + x) as u64);
-                at.push(x);
-            }
-            let now = shading.diffuse_direct(&points, &streams, opts.reshade_samples, opts.seed)?;
-            for ((x, d), k) in at.into_iter().zip(now).zip(streams) {
-                let a = &acc[x];
-                let before = at_mean_time(times, then, k as usize, a.alpha / a.w);
-                row[x] = (a.radiance / a.w + d - before).max(Vec3::ZERO);
+                let k = y * w + x;
+                let before = at_mean_time(times, then, k, a.alpha / a.w);
+                row[x] = (a.radiance / a.w + now[k] - before).max(Vec3::ZERO);
             }
             Ok(misses)
         })

@@ -185,8 +185,16 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
     let mut extra = String::new();
     if options.time_interp == TimeInterp::Reshade {
         extra += &format!(
-            ", {} pixel(s) whose light changed since the base times re-shaded with {} light samples, {} mirror pixel(s) no base showed",
-            stats.reshaded, options.reshade_samples, stats.mirror_misses
+            ", {} pixel(s) whose light changed since the base times re-shaded with {} light samples, \
+             diffuse indirect light {}, {} mirror pixel(s) no base showed",
+            stats.reshaded,
+            options.reshade_samples,
+            if stats.indirect_corrected {
+                "corrected by the radiosity records"
+            } else {
+                "as the bases hold it (no radiosity records, or a static scene)"
+            },
+            stats.mirror_misses
         );
     }
     if options.blend == Blend::Nearest {

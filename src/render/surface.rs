@@ -24,6 +24,19 @@ pub struct SurfacePoint {
     pub wo: Vec3,
 }
 
+/// Where and how a point's diffuse lobe reflects light arriving from all
+/// around: the object-space point, winding normal (turned to the viewer's
+/// side) and side at which irradiance records are looked up, as the
+/// multipass renderer looks them up at its hits, and the lobe's albedo.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DiffuseQuery {
+    pub object: u32,
+    pub front: bool,
+    pub local: Vec3,
+    pub normal: Vec3,
+    pub albedo: Vec3,
+}
+
 /// What a mirror at a point reflects.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Reflected {
@@ -105,6 +118,32 @@ impl<'a> SurfaceShading<'a> {
         } else {
             Vec3::ZERO
         }
+    }
+
+    /// The point's [`DiffuseQuery`]; `None` where its material reflects
+    /// nothing diffusely or the viewer sees its triangle edge-on.
+    pub fn diffuse_query(&self, sp: &SurfacePoint) -> Option<DiffuseQuery> {
+        let l = self.local(sp)?;
+        let albedo = match Lobes::at(&self.scene.material_of(sp.object).bsdf, l.uv) {
+            Lobes::Diffuse { albedo } => albedo,
+            Lobes::Glossy { diffuse, .. } => diffuse,
+            Lobes::Mirror { .. } => Vec3::ZERO,
+        };
+        let cos_o = l.ng.dot(sp.wo);
+        if albedo == Vec3::ZERO || cos_o == 0.0 || !cos_o.is_finite() {
+            return None;
+        }
+        let object = &self.scene.objects[sp.object as usize];
+        let [a, b, c] = object.mesh.triangles[sp.primitive as usize].map(|i| object.mesh.positions[i as usize]);
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        let front = cos_o > 0.0;
+        Some(DiffuseQuery {
+            object: sp.object,
+            front,
+            local: self.inverse[sp.object as usize].transform_point3(sp.position),
+            normal: if front { n } else { -n },
+            albedo,
+        })
     }
 
     /// Direct light reflected towards the viewer by the diffuse lobe of each

@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 use crate::accel::{self, InstancedEngine};
 use crate::alloc;
-use crate::bake::Bake;
+use crate::bake::{Bake, IndirectSource};
 use crate::camera::Camera;
 use crate::image::{RangeImage, RangeMeta, NO_HIT};
 use crate::scene::{Scene, ViewSpace};
@@ -25,12 +25,14 @@ use crate::scene::{Scene, ViewSpace};
 pub mod base;
 mod cells;
 mod fill;
+mod indirect;
 mod lights;
 mod reshade;
 pub mod walk;
 mod warp;
 
 pub use base::{Base, BaseCache, BYTES_PER_PIXEL};
+use indirect::Records;
 use warp::{Accum, Pass, Target, Twin, WarpSettings, SKY_Z};
 pub use warp::{Blend, Filter};
 
@@ -249,6 +251,10 @@ pub struct FrameStats {
     pub mirror_misses: usize,
     /// Pixels at or beside lights traced again.
     pub light_pixels: usize,
+    /// Whether re-shading corrected diffuse indirect light by the bake's
+    /// radiosity records (it cannot where the bake traced it, and need not
+    /// in a static scene).
+    pub indirect_corrected: bool,
     /// Pixels whose direct light changed since the base times (and their
     /// neighbours), re-shaded with all of `reshade_samples`.
     pub reshaded: usize,
@@ -271,6 +277,10 @@ pub struct Synthesizer<'a> {
     buffers: [Vec<Accum>; 2],
     /// A frame its caller gave back ([`Synthesizer::recycle`]).
     spare: Option<RangeImage>,
+    /// The bake's radiosity records, read on the first re-shaded frame;
+    /// `Some(None)` where they cannot correct anything (see
+    /// [`Synthesizer::records`]).
+    records: Option<Option<Arc<Records>>>,
 }
 
 /// Memory kept for bases by default: eight 2,600² bases fit.
@@ -284,6 +294,7 @@ pub struct Kept {
     cache: BaseCache,
     engine: Option<(Box<dyn InstancedEngine>, f32)>,
     buffers: [Vec<Accum>; 2],
+    records: Option<Option<Arc<Records>>>,
 }
 
 impl Kept {
@@ -292,6 +303,7 @@ impl Kept {
             cache: BaseCache::new(budget_bytes),
             engine: None,
             buffers: Default::default(),
+            records: None,
         }
     }
 
@@ -315,6 +327,7 @@ impl<'a> Synthesizer<'a> {
             cache: kept.cache,
             engine: kept.engine,
             buffers: kept.buffers,
+            records: kept.records,
             spare: None,
         }
     }
@@ -325,6 +338,7 @@ impl<'a> Synthesizer<'a> {
             cache: self.cache,
             engine: self.engine,
             buffers: self.buffers,
+            records: self.records,
         }
     }
 
@@ -723,6 +737,11 @@ impl<'a> Synthesizer<'a> {
                     )?;
                 }
             }
+            let records = self.records()?;
+            if let Some(r) = &records {
+                r.prepare(&std::iter::once(t).chain(times.iter().copied()).collect::<Vec<_>>())?;
+            }
+            stats.indirect_corrected = records.is_some();
             let engine = &*self.engine_at(t)?;
             stats.mirror_misses = reshade::apply(
                 scene,
@@ -734,6 +753,7 @@ impl<'a> Synthesizer<'a> {
                 &times,
                 &now,
                 &then,
+                records.as_deref(),
                 opts,
                 &mut image,
             )?;
@@ -768,6 +788,23 @@ impl<'a> Synthesizer<'a> {
     }
 
     /// The scene's ray engine (built on first use) posed at `t`.
+    /// The radiosity records that re-shading corrects diffuse indirect
+    /// light with: none where the bake traced its indirect light (it has
+    /// none) or the scene is static (they never change).
+    fn records(&mut self) -> Result<Option<Arc<Records>>> {
+        if self.records.is_none() {
+            let wanted = self.bake.manifest.settings.indirect == IndirectSource::Radiosity
+                && !self.scene.is_static();
+            let records = if wanted {
+                Some(Arc::new(Records::load(&self.bake.dir, self.scene)?))
+            } else {
+                None
+            };
+            self.records = Some(records.filter(|r| r.vary()));
+        }
+        Ok(self.records.clone().flatten())
+    }
+
     pub(crate) fn engine_at(&mut self, t: f32) -> Result<&mut dyn InstancedEngine> {
         if self.engine.is_none() {
             let backend = self.bake.manifest.settings.backend;
@@ -1062,7 +1099,7 @@ mod tests {
 
     use super::*;
     use crate::accel::Backend;
-    use crate::bake::{self, BaseProjection, IndirectSource, Settings, Shard};
+    use crate::bake::{self, BaseProjection, Settings, Shard};
     use crate::plan::{Plan, PlannedView};
 
     fn cornell_box() -> Scene {

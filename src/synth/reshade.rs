@@ -15,6 +15,7 @@
 //! (a frame's few samples would otherwise replace it with their noise);
 //! only where a shadow moved does the difference count.
 
+use std::f32::consts::FRAC_1_PI;
 use std::sync::Arc;
 
 use anyhow::Result;
@@ -22,6 +23,7 @@ use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
 use super::base::Base;
+use super::indirect::Records;
 use super::lights::luminance;
 use super::warp::{Accum, SKY_Z};
 use super::Options;
@@ -202,20 +204,22 @@ pub fn changed(now: &[Vec3], then: &[Vec<Vec3>], width: usize, reach: usize) -> 
     out
 }
 
-/// The light of `pixel` at its blend's mean base time `tau`, from the
-/// values at each of the base `times` (ascending), interpolated linearly.
-fn at_mean_time(times: &[f32], then: &[Vec<Vec3>], pixel: usize, tau: f32) -> Vec3 {
+/// Where a pixel's blend's mean base time `tau` falls among the base
+/// `times` (ascending): the two it lies between and the later one's
+/// weight (the one nearest, twice, outside them), so that its light there
+/// is its light at those times interpolated linearly.
+fn mean_time(times: &[f32], tau: f32) -> (usize, usize, f32) {
     let i = times.partition_point(|&s| s <= tau).clamp(1, times.len()) - 1;
-    let Some(&next) = times.get(i + 1) else {
-        return then[i][pixel];
-    };
-    let f = ((tau - times[i]) / (next - times[i])).clamp(0.0, 1.0);
-    then[i][pixel].lerp(then[i + 1][pixel], f)
+    match times.get(i + 1) {
+        Some(&next) => (i, i + 1, ((tau - times[i]) / (next - times[i])).clamp(0.0, 1.0)),
+        None => (i, i, 0.0),
+    }
 }
 
 /// Re-shades `image` (made from `pixels`); `engine` holds the scene posed
 /// at `t`, `now` is [`direct_at`] the frame's time and `then[i]` at base
-/// time `times[i]`. Returns
+/// time `times[i]`; `records`, where the bake has them and they change,
+/// correct the diffuse indirect light too ([`super::indirect`]). Returns
 /// the number of mirror pixels whose reflection no base showed (they keep
 /// their projected radiance).
 #[allow(clippy::too_many_arguments)]
@@ -229,6 +233,7 @@ pub fn apply(
     times: &[f32],
     now: &[Vec3],
     then: &[Vec<Vec3>],
+    records: Option<&Records>,
     opts: &Options,
     image: &mut RangeImage,
 ) -> Result<usize> {
@@ -285,8 +290,19 @@ pub fn apply(
                     continue;
                 }
                 let k = y * w + x;
-                let before = at_mean_time(times, then, k, a.alpha / a.w);
-                row[x] = (a.radiance / a.w + now[k] - before).max(Vec3::ZERO);
+                let (i, j, f) = mean_time(times, a.alpha / a.w);
+                let before = then[i][k].lerp(then[j][k], f);
+                let mut l = a.radiance / a.w + now[k] - before;
+                if let Some((r, q)) = records.zip(shading.diffuse_query(&sp)) {
+                    let ei = r.irradiance(&q, times[i])?;
+                    let before = if j == i {
+                        ei
+                    } else {
+                        ei.lerp(r.irradiance(&q, times[j])?, f)
+                    };
+                    l += q.albedo * FRAC_1_PI * (r.irradiance(&q, t)? - before);
+                }
+                row[x] = l.max(Vec3::ZERO);
             }
             Ok(misses)
         })

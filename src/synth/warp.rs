@@ -937,8 +937,8 @@ fn prepare_tile(
     let agrees = |a: &Projected, b: &Projected| {
         a.sky() == b.sky()
             && (a.sky()
-                || (a.object == b.object && a.primitive == b.primitive)
-                || (a.z - b.z).abs() <= 2.0 * eps * a.z)
+                || (a.object == b.object
+                    && (a.primitive == b.primitive || (a.z - b.z).abs() <= 2.0 * eps * a.z)))
     };
     for y in tile.y0..(tile.y0 + TILE).min(bh) {
         for x in tile.x0..(tile.x0 + TILE).min(bw) {

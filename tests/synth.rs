@@ -14,6 +14,7 @@ use rangewalk::camera::{Camera, Projection};
 use rangewalk::eval::metrics::{self, luminance};
 use rangewalk::image::{RangeImage, NO_HIT};
 use rangewalk::plan::{Plan, PlannedView};
+use rangewalk::radiosity::lookup::IrradianceCache;
 use rangewalk::render::{self, RenderSettings};
 use rangewalk::scene::Scene;
 use rangewalk::synth::{Blend, Fill, Filter, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET};
@@ -934,4 +935,88 @@ fn a_frame_too_large_for_memory_is_an_error_saying_how_much_it_needs() {
         }
         assert!(!out.exists(), "{size}");
     }
+}
+
+/// RMS over the 8 × 8 blocks that lie mostly (three quarters) on `mask`
+/// of the block means' luminance difference, relative to the reference's
+/// mean luminance, and how many blocks: the structure a viewer sees (a
+/// seam, a patch of wrong light) without the pixels' noise.
+fn block_error(frame: &RangeImage, reference: &RangeImage, mask: &[bool]) -> (f64, usize) {
+    let (w, h) = (reference.width as usize, reference.height as usize);
+    let y = |img: &RangeImage, k: usize| luminance(img.radiance[k]) as f64;
+    let mean = (0..reference.len()).map(|k| y(reference, k)).sum::<f64>() / reference.len() as f64;
+    let mut errors = Vec::new();
+    for by in 0..h / 8 {
+        for bx in 0..w / 8 {
+            let block: Vec<usize> = (0..64)
+                .map(|i| (by * 8 + i / 8) * w + bx * 8 + i % 8)
+                .collect();
+            if block.iter().filter(|&&k| mask[k]).count() < 48 {
+                continue;
+            }
+            let m = |img: &RangeImage| block.iter().map(|&k| y(img, k)).sum::<f64>() / 64.0;
+            errors.push((m(frame) - m(reference)) / mean);
+        }
+    }
+    let n = errors.len();
+    (
+        (errors.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
+        n,
+    )
+}
+
+/// Between base times a surface seen at only one of them (what a moving
+/// box uncovered) carries that time's light, the pixels beside it the
+/// blend of both: a seam crossed the tall box at the short box's height.
+/// Re-shading corrects diffuse indirect light by the bake's radiosity
+/// records, so the moving boxes are as right between base times as at
+/// one. The reference is a multipass render with the same records, so
+/// that only synthesis is measured, not the records' own error.
+#[test]
+fn between_base_times_the_moving_boxes_are_as_right_as_at_a_base_time() {
+    let scene = load(&scene_path("cornell-box"));
+    let dir = tempfile::tempdir().unwrap();
+    let with_records = Settings {
+        indirect: IndirectSource::Radiosity,
+        ..settings(512, 16)
+    };
+    let baked = bake_into(&scene, dir.path(), &with_records, ends(&scene, &[0.0, 1.0]));
+    let (simplified, series) =
+        rangewalk::radiosity::bake::load(&dir.path().join("radiosity")).unwrap();
+    let camera = scene.camera("main").unwrap().perspective(128, 128).unwrap();
+    let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
+    let opts = Options {
+        time_interp: TimeInterp::Reshade,
+        ..Options::default()
+    };
+    let mut at = |t: f32| {
+        let cache = IrradianceCache::new(&simplified, &series.indirect_at(t)).unwrap();
+        let e = engine(&scene, t);
+        let s = RenderSettings {
+            spp: 256,
+            max_depth: None,
+            seed: 11,
+        };
+        let reference = render::multipass::render(&scene, e.as_ref(), &camera, t, &s, &cache)
+            .unwrap()
+            .0;
+        let boxes: Vec<bool> = reference
+            .object_id
+            .iter()
+            .map(|&o| o == 6 || o == 7)
+            .collect();
+        let (frame, stats) = synth.frame(&camera, t, &opts).unwrap();
+        assert!(stats.indirect_corrected, "t = {t}: records unused");
+        block_error(&frame, &reference, &boxes)
+    };
+    let (at_base, n) = at(0.0);
+    let (between, _) = at(0.5);
+    // The RMS of n block errors is known to a relative standard error of
+    // about 1/sqrt(2 n); two of them allow for the base time's own.
+    let allowed = at_base * (1.0 + 2.0 / (2.0 * n as f64).sqrt());
+    assert!(
+        between <= allowed,
+        "8x8-block error on the moving boxes: {between:.4} at t = 0.5, {at_base:.4} at t = 0 \
+         ({n} blocks), at most {allowed:.4}"
+    );
 }

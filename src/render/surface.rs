@@ -134,7 +134,8 @@ impl<'a> SurfaceShading<'a> {
             return None;
         }
         let object = &self.scene.objects[sp.object as usize];
-        let [a, b, c] = object.mesh.triangles[sp.primitive as usize].map(|i| object.mesh.positions[i as usize]);
+        let [a, b, c] =
+            object.mesh.triangles[sp.primitive as usize].map(|i| object.mesh.positions[i as usize]);
         let n = (b - a).cross(c - a).normalize_or_zero();
         let front = cos_o > 0.0;
         Some(DiffuseQuery {

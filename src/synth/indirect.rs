@@ -90,14 +90,18 @@ impl Records {
             .collect();
         wanted.sort_unstable();
         wanted.dedup();
-        wanted.par_iter().try_for_each(|&k| self.cache(k).map(|_| ()))
+        wanted
+            .par_iter()
+            .try_for_each(|&k| self.cache(k).map(|_| ()))
     }
 
     /// Indirect irradiance at the query's point at time `t`.
     pub fn irradiance(&self, q: &DiffuseQuery, t: f32) -> Result<Vec3> {
         let (a, b, w) = self.bracket(t);
         let at = |k: usize| -> Result<Vec3> {
-            Ok(self.cache(k)?.irradiance(q.object, q.front, q.local, q.normal))
+            Ok(self
+                .cache(k)?
+                .irradiance(q.object, q.front, q.local, q.normal))
         };
         let ea = at(a)?;
         if w == 0.0 || a == b {

@@ -739,7 +739,11 @@ impl<'a> Synthesizer<'a> {
             }
             let records = self.records()?;
             if let Some(r) = &records {
-                r.prepare(&std::iter::once(t).chain(times.iter().copied()).collect::<Vec<_>>())?;
+                r.prepare(
+                    &std::iter::once(t)
+                        .chain(times.iter().copied())
+                        .collect::<Vec<_>>(),
+                )?;
             }
             stats.indirect_corrected = records.is_some();
             let engine = &*self.engine_at(t)?;

@@ -211,7 +211,11 @@ pub fn changed(now: &[Vec3], then: &[Vec<Vec3>], width: usize, reach: usize) -> 
 fn mean_time(times: &[f32], tau: f32) -> (usize, usize, f32) {
     let i = times.partition_point(|&s| s <= tau).clamp(1, times.len()) - 1;
     match times.get(i + 1) {
-        Some(&next) => (i, i + 1, ((tau - times[i]) / (next - times[i])).clamp(0.0, 1.0)),
+        Some(&next) => (
+            i,
+            i + 1,
+            ((tau - times[i]) / (next - times[i])).clamp(0.0, 1.0),
+        ),
         None => (i, i, 0.0),
     }
 }

@@ -547,12 +547,14 @@ impl<'a> Synthesizer<'a> {
             bases.push(self.cache.get(self.bake, self.scene, k, &keep)?);
         }
         let target = Target::new(*camera);
+        let background = matches!(opts.fill, Fill::Background | Fill::Both);
         let settings = WarpSettings {
             tolerance: opts.tolerance,
             splat: matches!(opts.fill, Fill::Foreground | Fill::Both),
             filter: opts.filter,
             blend: opts.blend,
             alpha: matches!(opts.time_interp, TimeInterp::Linear | TimeInterp::Reshade),
+            sky: !background,
         };
         let poses_t = self.scene.at(t);
         let moves_of = |base: &Base| -> Vec<Option<Affine3A>> {
@@ -574,7 +576,6 @@ impl<'a> Synthesizer<'a> {
             images: keep.clone(),
             ..FrameStats::default()
         };
-        let background = matches!(opts.fill, Fill::Background | Fill::Both);
         // The holes a buffer has left after the sky's; background fill
         // fills some of them.
         let finish = |buffer: &mut Vec<Accum>, holes: usize, stats: &mut FrameStats| {
@@ -791,7 +792,6 @@ impl<'a> Synthesizer<'a> {
         Ok(fill::sky(engine, &sky, camera, buffer))
     }
 
-    /// The scene's ray engine (built on first use) posed at `t`.
     /// The radiosity records that re-shading corrects diffuse indirect
     /// light with: none where the bake traced its indirect light (it has
     /// none) or the scene is static (they never change).
@@ -809,6 +809,7 @@ impl<'a> Synthesizer<'a> {
         Ok(self.records.clone().flatten())
     }
 
+    /// The scene's ray engine (built on first use) posed at `t`.
     pub(crate) fn engine_at(&mut self, t: f32) -> Result<&mut dyn InstancedEngine> {
         if self.engine.is_none() {
             let backend = self.bake.manifest.settings.backend;

@@ -217,6 +217,14 @@ pub struct WarpSettings {
     /// Whether pixels sum their samples' `alpha` (linear blending and
     /// re-shading read it).
     pub alpha: bool,
+    /// Whether base pixels that see nothing are projected, as directions.
+    /// Where the frame's holes are traced (a background fill), its own
+    /// rays find its sky exactly; a base's sky pixel lands by its
+    /// direction alone, wherever that falls, and in a gap between a
+    /// surface's samples it claims a pixel of the surface (dark dots down
+    /// a box's edge), while one that holds part of a surface (a window
+    /// bar) carries that surface's light into the sky.
+    pub sky: bool,
 }
 
 impl WarpSettings {
@@ -885,7 +893,7 @@ fn prepare_tile(
             let p = base.points[k];
             let o = base.object[k];
             let projected = if o == SKY {
-                if p == Vec3::ZERO {
+                if p == Vec3::ZERO || !settings.sky {
                     None
                 } else {
                     target.direction(p).map(|px| Projected {

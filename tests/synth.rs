@@ -1080,3 +1080,72 @@ fn objects_that_move_apart_keep_their_own_pixels() {
         );
     }
 }
+
+/// A silhouette against the sky (the Cornell box's walls seen past their
+/// front edges) follows the base's pixel grid, turned and stretched by
+/// reprojection, as a jagged, dotted edge; a render's pixels hold each
+/// side's share. Traced at the frame's own pixels, the edge is no worse
+/// than a render taking the bases' own samples a pixel.
+#[test]
+fn silhouettes_carry_a_renders_antialiasing() {
+    let scene = load(&scene_path("cornell-box"));
+    let dir = tempfile::tempdir().unwrap();
+    let baked = bake_into(
+        &scene,
+        dir.path(),
+        &settings(512, 16),
+        ends(&scene, &[0.0, 1.0]),
+    );
+    let camera = scene.camera("main").unwrap().perspective(128, 128).unwrap();
+    let t = 0.5;
+    let reference = path_traced(&scene, &camera, t, 1024);
+    let (w, h) = (128i64, 128i64);
+    let near = |k: usize, r: i64, what: &dyn Fn(u32) -> bool| {
+        let (x, y) = ((k as i64) % w, (k as i64) / w);
+        (-r..=r).any(|dy| {
+            (-r..=r).any(|dx| {
+                let (u, v) = (x + dx, y + dy);
+                u >= 0
+                    && v >= 0
+                    && u < w
+                    && v < h
+                    && what(reference.object_id[(v * w + u) as usize])
+            })
+        })
+    };
+    // Surface pixels beside the sky, away from the light's rim.
+    let light = scene
+        .objects
+        .iter()
+        .position(|o| o.name == "light")
+        .unwrap() as u32;
+    let edge: Vec<bool> = (0..reference.len())
+        .map(|k| {
+            reference.object_id[k] != NO_HIT
+                && near(k, 1, &|o| o == NO_HIT)
+                && !near(k, 3, &|o| o == light)
+        })
+        .collect();
+    assert!(
+        edge.iter().filter(|&&e| e).count() > 200,
+        "the walls' edges are in view"
+    );
+    let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
+    let opts = Options {
+        time_interp: TimeInterp::Reshade,
+        ..Options::default()
+    };
+    let frame = synth.frame(&camera, t, &opts).unwrap().0;
+    let (synthesized, rendered) = (
+        error(&frame, &reference, &edge),
+        error(
+            &path_traced_with_seed(&scene, &camera, t, 16, 99),
+            &reference,
+            &edge,
+        ),
+    );
+    assert!(
+        synthesized <= rendered,
+        "at silhouettes against the sky: synthesized {synthesized:.4}, a 16-spp render (the bases' samples) {rendered:.4}"
+    );
+}

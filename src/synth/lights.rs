@@ -1,4 +1,5 @@
-//! Lights' pixels, traced again at the frame's own pixels.
+//! Lights' pixels and silhouettes, traced again at the frame's own
+//! pixels.
 //!
 //! A reprojected base pixel is one sample: where a light meets the dark
 //! ceiling around it, a frame pixel shows all of one side or all of the
@@ -7,12 +8,16 @@
 //! recovers that fraction, and at a light forty times brighter than its
 //! surroundings those few pixels outweigh every other error in the frame;
 //! the base pixels at a light's rim, themselves such mixtures, are also
-//! splatted over the light's inside and darken it. Primary rays through
-//! the pixels at and beside a light find what each covers: a ray on the
-//! light takes its emission (or the light's own pixels where they are not
-//! darker), a ray beside it the frame's radiance at the nearest pixel that
-//! shows the same face and holds no part of a light. No light is
-//! computed anew, and nothing changes away from lights.
+//! splatted over the light's inside and darken it. Every silhouette has
+//! the same fault at a smaller contrast: its outline follows the base's
+//! pixel grid, turned and stretched by reprojection, as a jagged or dotted
+//! edge, where a render's pixels hold each surface's share. Primary rays
+//! through the pixels at and beside a light or a change of surface find
+//! what each covers: a ray on a light takes its emission (or the light's
+//! own pixels where they are not darker), any other ray the frame's
+//! radiance at the nearest pixel that shows the same face and holds no
+//! part of a light. No light is computed anew, and nothing changes inside
+//! surfaces.
 
 use std::ops::Range;
 
@@ -31,20 +36,24 @@ const FACE_COS: f32 = 0.9;
 /// How far (in pixels) a ray looks for a pixel showing the surface it hit.
 const REACH: i64 = 2;
 
-/// Replaces the radiance of every frame pixel at or beside a light by the
-/// mean of `side²` rays through it; `engine` holds the scene posed at
-/// `t`. Rays through the pixel's four corners go first: an outline that
-/// crosses the pixel crosses its sides, so where they all meet one surface
-/// (a light's inside) the ray through its centre is enough, and the full
-/// set is spent on the rim. Returns the number of pixels traced.
+/// Replaces the radiance of every frame pixel at or beside a light or a
+/// silhouette by the mean of `side²` rays through it; `engine` holds the
+/// scene posed at `t`. Rays through the pixel's four corners go first: an
+/// outline that crosses the pixel crosses its sides, so where they all
+/// meet the surface the pixel shows, and its value is that surface's alone
+/// (`mixed`, per pixel, says where subpixels mixed objects), it keeps its
+/// value; a light's inside, or a pixel that one surface covers but whose
+/// value mixes, takes the ray through its centre; the full set is spent
+/// on the rims. Returns the number of pixels traced.
 pub fn trace(
     scene: &Scene,
     engine: &dyn RayEngine,
     t: f32,
     side: u32,
+    mixed: Option<&[bool]>,
     image: &mut RangeImage,
 ) -> usize {
-    if side == 0 {
+    if side == 0 || image.is_empty() {
         return 0;
     }
     let (w, h) = (image.width as usize, image.height as usize);
@@ -52,9 +61,7 @@ pub fn trace(
     let radiance = &image.radiance;
     let emissive = emissive(scene);
     let emits = |id: u32| emissive.get(id as usize).copied().unwrap_or(false);
-    let Some(near) = near_lights(&emissive, ids, w, h) else {
-        return 0;
-    };
+    let near = whole_frame(&emissive, ids, w, h);
     let shading = SurfaceShading::new(scene, engine, t);
     let camera = image.meta.camera;
     let around = Around {
@@ -65,13 +72,16 @@ pub fn trace(
         w: w as i64,
         h: h as i64,
     };
-    // Rows of the pixels to trace (those at or beside a light), and the
-    // columns in each.
-    let first_row = near.window.start / w;
-    let rows: Vec<Vec<usize>> = near
-        .lit
-        .par_chunks(w)
-        .map(|row| (0..w).filter(|&x| row[x]).collect())
+    // Rows of the pixels to trace (those at or beside a light or a change
+    // of surface), and the columns in each.
+    let first_row = 0;
+    let rows: Vec<Vec<usize>> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            (0..w)
+                .filter(|&x| near.lit(y * w + x) || !near.interior(y * w + x))
+                .collect()
+        })
         .collect();
     // What the ray through each pixel corner they need meets (`None`
     // outside a fisheye's circle), traced once for the pixels sharing it,
@@ -153,8 +163,12 @@ pub fn trace(
                     continue;
                 };
                 let one = c.iter().all(|&o| o == c[0]);
-                let offsets: &[(f32, f32)] = if one { &centre } else { &full };
                 let y = first_row + r;
+                let k = y * w + x;
+                if one && c[0] == ids[k] && !near.lit(k) && !mixed.is_some_and(|m| m[k]) {
+                    continue;
+                }
+                let offsets: &[(f32, f32)] = if one { &centre } else { &full };
                 let Some(rays) = offsets
                     .iter()
                     .map(|&(dx, dy)| camera.ray(x as f32 + dx, y as f32 + dy))
@@ -163,7 +177,7 @@ pub fn trace(
                     continue;
                 };
                 let set = &mut sets[!one as usize];
-                set.0.push(y * w + x);
+                set.0.push(k);
                 set.1.extend(rays);
             }
             let mut out = Vec::new();
@@ -297,6 +311,20 @@ impl Near {
     }
 }
 
+/// [`Near`] over the whole frame: silhouettes are everywhere.
+fn whole_frame(emissive: &[bool], ids: &[u32], w: usize, h: usize) -> Near {
+    let on_light: Vec<bool> = ids
+        .par_iter()
+        .map(|id| emissive.get(*id as usize).copied().unwrap_or(false))
+        .collect();
+    Near {
+        window: 0..ids.len(),
+        lit: dilate(&on_light, w, h),
+        interior: interior(ids, w, h),
+        on_light,
+    }
+}
+
 /// The masks of the frame's pixels (`ids`, `w` × `h`) near the lights
 /// that `emissive` marks; `None` where no pixel shows one.
 fn near_lights(emissive: &[bool], ids: &[u32], w: usize, h: usize) -> Option<Near> {
@@ -339,16 +367,6 @@ pub(super) fn emissive(scene: &Scene) -> Vec<bool> {
     (0..scene.objects.len() as u32)
         .map(|o| scene.material_of(o).emission.is_some())
         .collect()
-}
-
-/// Whether any pixel of `image` shows a light: a frame without one needs
-/// no ray engine for [`trace`].
-pub fn shows_a_light(scene: &Scene, image: &RangeImage) -> bool {
-    let emissive = emissive(scene);
-    image
-        .object_id
-        .par_iter()
-        .any(|&id| emissive.get(id as usize).copied().unwrap_or(false))
 }
 
 /// `mask` grown by one pixel in every direction (a 3×3 dilation), in two

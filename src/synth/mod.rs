@@ -104,7 +104,8 @@ pub struct Options {
     /// since the base times (elsewhere [`reshade::FIND_SAMPLES`] find that
     /// it did not).
     pub reshade_samples: u32,
-    /// Rays per side of a pixel at or beside a light ([`lights`]); 0: none.
+    /// Rays per side of a pixel at or beside a light or a silhouette
+    /// ([`lights`]); 0: none.
     pub light_rays: u32,
     pub seed: u64,
     /// Side of the grid of subpixels each frame pixel is synthesized as
@@ -249,7 +250,7 @@ pub struct FrameStats {
     pub sky: usize,
     /// Mirror pixels whose reflection no base showed (kept as projected).
     pub mirror_misses: usize,
-    /// Pixels at or beside lights traced again.
+    /// Pixels at or beside lights and silhouettes traced again.
     pub light_pixels: usize,
     /// Whether re-shading corrected diffuse indirect light by the bake's
     /// radiosity records (it cannot where the bake traced it, and need not
@@ -443,7 +444,7 @@ impl<'a> Synthesizer<'a> {
         let spare = self.spare_for(camera);
         let buffer = &self.buffers[0];
         let seen = |j: usize| !buffer[j].is_empty();
-        let (mut image, holes) = match &fine_image {
+        let (mut image, holes, mixed) = match &fine_image {
             Some(f) => downsample(
                 self.scene,
                 &poses,
@@ -476,10 +477,11 @@ impl<'a> Synthesizer<'a> {
                 )?
             }
         };
-        if opts.light_rays > 0 && lights::shows_a_light(self.scene, &image) {
+        if opts.light_rays > 0 {
             let scene = self.scene;
             let engine = &*self.engine_at(t)?;
-            stats.light_pixels = lights::trace(scene, engine, t, opts.light_rays, &mut image);
+            stats.light_pixels =
+                lights::trace(scene, engine, t, opts.light_rays, Some(&mixed), &mut image);
         }
         let per_pixel = |n: usize| n.div_ceil((k * k) as usize);
         stats.holes = holes;
@@ -763,10 +765,12 @@ impl<'a> Synthesizer<'a> {
                 &mut image,
             )?;
         }
-        if opts.light_rays > 0 && lights::shows_a_light(self.scene, &image) {
+        if opts.light_rays > 0 {
             let scene = self.scene;
             let engine = &*self.engine_at(t)?;
-            stats.light_pixels = lights::trace(scene, engine, t, opts.light_rays, &mut image);
+            // Without subpixels a pixel holds the one surface its z-buffer
+            // entry kept.
+            stats.light_pixels = lights::trace(scene, engine, t, opts.light_rays, None, &mut image);
         }
         self.buffers = [pixels, second];
         stats.load_seconds = self.cache.load_seconds - load_before;
@@ -838,7 +842,9 @@ pub const MAX_SUPERSAMPLE: u32 = 4;
 /// (at `poses`), as a render's would be; a pixel none reached is a hole. A
 /// pixel part of which shows a light takes the light's surface, so that
 /// tracing lights' rims ([`lights`]) finds it. Written into `spare`'s
-/// planes where given. Returns the frame and its holes.
+/// planes where given. Returns the frame, its holes, and which pixels'
+/// subpixels show more than one object (their values mix surfaces:
+/// [`lights::trace`] mends them).
 #[allow(clippy::too_many_arguments)]
 fn downsample(
     scene: &Scene,
@@ -849,7 +855,7 @@ fn downsample(
     radiance: impl Fn(usize) -> Vec3 + Sync,
     object: impl Fn(usize) -> u32 + Sync,
     surface: impl Fn(usize) -> (f32, u32, u32, Vec3) + Sync,
-) -> Result<(RangeImage, usize)> {
+) -> Result<(RangeImage, usize, Vec<bool>)> {
     let mut image = blank(
         spare,
         RangeMeta {
@@ -868,16 +874,21 @@ fn downsample(
         let d = |p: &(usize, usize)| (p.0 as f32 - centre).powi(2) + (p.1 as f32 - centre).powi(2);
         d(a).total_cmp(&d(b))
     });
+    let mut mixed = Vec::new();
+    alloc::resize(&mut mixed, image.len(), false, || {
+        format!("which of {} pixels mix surfaces", image.len())
+    })?;
     let holes = image
         .radiance
         .par_iter_mut()
+        .zip(mixed.par_iter_mut())
         .zip(image.distance.par_iter_mut())
         .zip(image.object_id.par_iter_mut())
         .zip(image.primitive_id.par_iter_mut())
         .zip(image.normal.par_iter_mut())
         .enumerate()
         .map(
-            |(i, ((((pixel, distance), shown_object), primitive), normal))| {
+            |(i, (((((pixel, mixed), distance), shown_object), primitive), normal))| {
                 let (x, y) = (i % w, i / w);
                 let at = |(dx, dy): (usize, usize)| (y * k + dy) * fw + x * k + dx;
                 let (mut sum, mut n, mut shown, mut light) = (Vec3::ZERO, 0u32, None, None);
@@ -888,6 +899,7 @@ fn downsample(
                     }
                     sum += radiance(j);
                     n += 1;
+                    *mixed |= shown.is_some_and(|s| object(s) != object(j));
                     shown.get_or_insert(j);
                     if light.is_none() && emits(object(j)) {
                         light = Some(j);
@@ -911,7 +923,7 @@ fn downsample(
             },
         )
         .sum();
-    Ok((image, holes))
+    Ok((image, holes, mixed))
 }
 
 /// Distance along pixel `(x, y)`'s centre ray to the plane of `object`'s

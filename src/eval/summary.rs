@@ -448,10 +448,30 @@ pub fn write_strip(
 /// one `exposure`; a row shorter than the longest is left white at its end.
 pub fn write_sheet(
     path: impl AsRef<Path>,
-    (w, h): (u32, u32),
+    size: (u32, u32),
     rows: &[Vec<&[Vec3]>],
     exposure: f32,
 ) -> Result<()> {
+    let tiles: Vec<Vec<Vec<u8>>> = rows
+        .iter()
+        .map(|row| {
+            row.iter()
+                .map(|img| image::tonemap_srgb8(img, exposure))
+                .collect()
+        })
+        .collect();
+    write_sheet_srgb8(path, size, &tiles)
+}
+
+/// Rows of 8-bit sRGB tiles (each `w x h`, `RGBRGB...`) in one PNG, with
+/// white gaps between them; a row shorter than the longest is left white
+/// at its end.
+pub fn write_sheet_srgb8(
+    path: impl AsRef<Path>,
+    (w, h): (u32, u32),
+    rows: &[Vec<Vec<u8>>],
+) -> Result<()> {
+    let path = path.as_ref();
     let gaps = |n: u32| n.saturating_sub(1) * STRIP_GAP;
     let columns = rows.iter().map(Vec::len).max().unwrap_or(0) as u32;
     let (width, height) = (
@@ -459,19 +479,24 @@ pub fn write_sheet(
         rows.len() as u32 * h + gaps(rows.len() as u32),
     );
     let mut rgb = vec![255u8; (width * height * 3) as usize];
+    let line = (w * 3) as usize;
     for (r, row) in rows.iter().enumerate() {
         let y0 = r as u32 * (h + STRIP_GAP);
-        for (i, img) in row.iter().enumerate() {
-            let tile = image::tonemap_srgb8(img, exposure);
+        for (i, tile) in row.iter().enumerate() {
+            anyhow::ensure!(
+                tile.len() == line * h as usize,
+                "writing {}: a tile of {} bytes is not {w}x{h} RGB",
+                path.display(),
+                tile.len()
+            );
             let x0 = i as u32 * (w + STRIP_GAP);
             for y in 0..h {
-                let from = (y * w * 3) as usize;
+                let from = y as usize * line;
                 let to = (((y0 + y) * width + x0) * 3) as usize;
-                rgb[to..to + (w * 3) as usize]
-                    .copy_from_slice(&tile[from..from + (w * 3) as usize]);
+                rgb[to..to + line].copy_from_slice(&tile[from..from + line]);
             }
         }
     }
-    image::png_io::write(path.as_ref(), width, height, &rgb)
-        .with_context(|| format!("writing {}", path.as_ref().display()))
+    image::png_io::write(path, width, height, &rgb)
+        .with_context(|| format!("writing {}", path.display()))
 }

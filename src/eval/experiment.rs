@@ -599,6 +599,32 @@ mod tests {
     }
 
     #[test]
+    fn the_curve_runs_until_it_passes_the_target_in_time_lrms_and_flip() {
+        let target = Target {
+            max_spp: 64,
+            seconds: 0.5,
+            lrms: 0.3,
+            flip: Some(0.1),
+        };
+        // 16 spp: 1.6 s (past twice 0.5 s), LRMS 0.25 below 0.3.
+        let mut p = point(16, 1.6);
+        p.flip = Some(0.2);
+        assert!(!target.reached(&p), "FLIP 0.2 is above the target's 0.1");
+        p.flip = Some(0.05);
+        assert!(target.reached(&p));
+        // Not yet past the time, or not below the LRMS.
+        assert!(!target.reached(&point(16, 0.9)));
+        assert!(!target.reached(&point(4, 1.6)));
+        // Without FLIP, time and LRMS decide; the sample cap always ends it.
+        let no_flip = Target {
+            flip: None,
+            ..target
+        };
+        assert!(no_flip.reached(&point(16, 1.6)));
+        assert!(target.reached(&point(64, 0.01)));
+    }
+
+    #[test]
     fn frames_cover_the_animation() {
         let mut scene = Scene::load(concat!(
             env!("CARGO_MANIFEST_DIR"),

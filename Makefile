@@ -33,7 +33,7 @@ demo: deps build
 	    --out out/demo.partial/synth-main-t0.5.exr --preview out/demo.partial/synth-main-t0.5.png; \
 	} 2>&1 | tee out/demo.partial/summary.txt
 	@mv out/demo.partial out/demo
-	@echo "demo written to out/demo/: bake/ (base images), walk/ (frames, walk.png animation, contact.png: synthesized above path-traced, summary.json), synth-main-t0.5.png, summary.txt (time of every phase, error)"
+	@echo "demo written to out/demo/: bake/ (base images), walk/ (frames, walk.png animation, contact.png: synthesized above path-traced above FLIP error map, summary.json), synth-main-t0.5.png, summary.txt (time of every phase, error: LRMS, bias, 8x8-block LRMS and p99, FLIP)"
 	@echo "walk through it in a window: $(RW) view out/demo/bake --size $(DEMO_SIZE) (keys: docs/viewer.md; without a display: xvfb-run $(RW) view out/demo/bake --path walk --screenshot out/demo/view.png)"
 
 # capi-test runs before the pure-Rust tests: those rebuild

@@ -116,7 +116,8 @@ enum Command {
     /// and turn, time plays; or play a path or an input script.
     View(cli::view::ViewArgs),
     /// Error of range images against a reference range image: LRMS and
-    /// bias of luminance (the paper's measure). Each image must have the
+    /// bias of luminance (the paper's measure), and the LRMS of 8x8-block
+    /// means and its 99th percentile over blocks. Each image must have the
     /// reference's size, projection and camera (its pixels must look where
     /// the reference's do); another scene time is a warning.
     Compare {
@@ -378,10 +379,12 @@ fn run(cli: Cli) -> Result<()> {
                     eprintln!("warning: {}: {w}", against());
                 }
                 println!(
-                    "{}: LRMS {:.4}, bias {:+.4} over {} pixels",
+                    "{}: LRMS {:.4}, bias {:+.4}, 8x8-block LRMS {:.4}, block p99 {:.4} over {} pixels",
                     p.display(),
                     e.lrms,
                     e.bias,
+                    e.block_lrms,
+                    e.block_p99,
                     e.pixels
                 );
             }

@@ -134,6 +134,8 @@ fn frame(frame: usize, time: f32, lrms: f64, bias: f64, render_s: f64) -> FrameR
         error: ImageError {
             lrms,
             bias,
+            block_lrms: lrms / 4.0,
+            block_p99: lrms * 2.0,
             pixels: 16,
         },
         flip: Some(lrms / 2.0),
@@ -205,8 +207,11 @@ fn results(out: PathBuf) -> IndirectResults {
                 error: ImageError {
                     lrms: 1.0 / (spp as f64).sqrt(),
                     bias: 0.0,
+                    block_lrms: 0.5 / (spp as f64).sqrt(),
+                    block_p99: 2.0 / (spp as f64).sqrt(),
                     pixels: 16,
                 },
+                flip: Some(0.3 / (spp as f64).sqrt()),
             })
             .to_vec(),
         equal_time: vec![PathTracerRun {
@@ -233,6 +238,12 @@ fn report_files_hold_the_measurements() {
     // Quality 0.3: mean LRMS 0.15 beside the paper's 0.147 (Table 2) and
     // 0.381 (Table 1); 0.5 has no paper figure.
     assert!(md.contains("| 0.150 | 0.200 |"), "{md}");
+    // Beside them: mean bias, mean block LRMS (a quarter of LRMS here),
+    // mean block p99 (twice it), mean and max FLIP.
+    assert!(
+        md.contains("| 0.150 | 0.200 | +0.0100 | 0.0375 | 0.300 | 0.0750 | 0.100 |"),
+        "{md}"
+    );
     assert!(md.contains("0.147") && md.contains("0.381"), "{md}");
     // Scene decomposition: simplify 0.5 + (2 - 2 x 0.5) of bisection.
     assert!(md.contains("| 1.50 | 1.00 |"), "{md}");
@@ -260,10 +271,15 @@ fn report_files_hold_the_measurements() {
         .iter()
         .any(|r| r[method] == "path-tracer" && r[quality] == "0.3;0.5"));
     assert_eq!(rows[1][flip].parse::<f64>().unwrap(), 0.1);
+    let (block, p99) = (col("block_lrms"), col("block_p99"));
+    assert_eq!(rows[1][block].parse::<f64>().unwrap(), 0.05);
+    assert_eq!(rows[1][p99].parse::<f64>().unwrap(), 0.4);
 
     let conv = read_csv(&dir.path().join("convergence.csv"));
     assert_eq!(conv.len(), 4);
     assert_eq!(conv[3][0], "4");
+    let flip_at = conv[0].iter().position(|h| h == "flip").unwrap();
+    assert_eq!(conv[3][flip_at], "0.1500");
 
     for name in [
         "error_per_frame.png",
@@ -392,6 +408,7 @@ mod end_to_end {
                 // renderer that lost it is 23% too dark.
                 assert!(f.error.bias.abs() < 0.12, "q = {}: {f:?}", q.quality);
                 assert_eq!(f.flip.is_some(), !a.no_flip);
+                assert!(f.error.block_lrms <= f.error.lrms, "{f:?}");
             }
         }
 
@@ -403,6 +420,9 @@ mod end_to_end {
         if let Some(p16) = c.iter().find(|p| p.spp == 16) {
             assert!(p16.error.lrms < 0.5 * c[0].error.lrms, "{c:?}");
         }
+        // Every point of the curve has its FLIP, for the comparison at
+        // equal FLIP.
+        assert!(c.iter().all(|p| p.flip.is_some_and(|f| f > 0.0)), "{c:?}");
         assert!(!r.equal_time.is_empty());
         for p in &r.equal_time {
             assert!(mean_lrms(&p.frames).is_finite());

@@ -751,6 +751,9 @@ fn a_walk_writes_every_frame_an_animation_and_a_summary() {
     // summary figure is the error of the written frame against the
     // written reference.
     let checks = summary["checks"].as_array().unwrap();
+    let flip = rangewalk::eval::flip::Flip::locate()
+        .unwrap_or_else(|e| panic!("FLIP is required by this test: {e:#}"));
+    let mut maps = Vec::new();
     let checked: Vec<u64> = checks
         .iter()
         .map(|c| c["frame"].as_u64().unwrap())
@@ -763,13 +766,49 @@ fn a_walk_writes_every_frame_an_animation_and_a_summary() {
             rangewalk::image::read_exr(out.join(format!("reference-{i:04}.exr"))).unwrap();
         assert_eq!(reference.meta.time, frame.meta.time);
         let e = rangewalk::eval::metrics::compare(&frame, &reference, None).unwrap();
-        assert!((c["lrms"].as_f64().unwrap() - e.lrms).abs() <= 1e-9 * e.lrms.max(1.0));
-        assert!((c["bias"].as_f64().unwrap() - e.bias).abs() <= 1e-9);
+        let close = |key: &str, v: f64| {
+            let got = c[key].as_f64().unwrap();
+            assert!(
+                (got - v).abs() <= 1e-9 * v.abs().max(1.0),
+                "{key}: {got} against {v}"
+            );
+        };
+        close("lrms", e.lrms);
+        close("bias", e.bias);
+        close("block_lrms", e.block_lrms);
+        close("block_p99", e.block_p99);
+        let f = flip
+            .hdr_maps(24, 16, &[(&reference.radiance, &frame.radiance)])
+            .unwrap()
+            .remove(0);
+        close("flip", f.mean);
+        maps.push(f.rgb);
     }
     assert!(!out.join("reference-0001.exr").exists());
-    // Three columns of 24 pixels and two rows of 16, 4-pixel gaps.
-    let sheet = rangewalk::image::png_io::read(out.join("contact.png")).unwrap();
-    assert_eq!((sheet.width, sheet.height), (3 * 24 + 2 * 4, 2 * 16 + 4));
+    // Three columns of 24 pixels and three rows of 16, 4-pixel gaps: the
+    // bottom row is FLIP's error map of each checked frame.
+    let (width, height, sheet) = png_bytes(&out.join("contact.png"));
+    assert_eq!((width, height), (3 * 24 + 2 * 4, 3 * 16 + 2 * 4));
+    for (k, map) in maps.iter().enumerate() {
+        for y in 0..16 {
+            let at = ((2 * (16 + 4) + y) * width as usize + k * (24 + 4)) * 3;
+            assert_eq!(
+                &sheet[at..at + 24 * 3],
+                &map[y * 24 * 3..(y + 1) * 24 * 3],
+                "frame {k}, row {y}"
+            );
+        }
+    }
+    let line = String::from_utf8_lossy(&o.stdout);
+    for what in [
+        "mean LRMS",
+        "mean 8x8-block LRMS",
+        "mean block p99",
+        "mean FLIP",
+        "FLIP's error map (bottom",
+    ] {
+        assert!(line.contains(what), "{what}: {line}");
+    }
     let apng = std::fs::read(out.join("walk.png")).unwrap();
     assert!(
         apng.windows(4).any(|w| w == b"acTL"),
@@ -779,6 +818,97 @@ fn a_walk_writes_every_frame_an_animation_and_a_summary() {
         apng.windows(4).filter(|w| w == b"fcTL").count(),
         5,
         "walk.png holds every frame"
+    );
+}
+
+/// The width, height and 8-bit RGB bytes of a PNG as written.
+fn png_bytes(path: &Path) -> (u32, u32, Vec<u8>) {
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgb, "{}", path.display());
+    buf.truncate(info.buffer_size());
+    (info.width, info.height, buf)
+}
+
+/// A walk's check measures FLIP unless told not to: without the Python
+/// environment it fails before writing anything, naming the fix and the
+/// way to do without; with `--no-flip` it says FLIP was left out and its
+/// sheet has no error-map row.
+#[test]
+fn a_walk_check_without_flip_fails_or_says_it_left_flip_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, bake_dir) = tiny_bake(dir.path());
+    let out = dir.path().join("walk");
+    let walk = |extra: &[&str]| {
+        let mut args = vec![
+            "walk",
+            bake_dir.to_str().unwrap(),
+            "--path",
+            "walk",
+            "--size",
+            "16x8",
+            "--fps",
+            "2",
+            "--check-every",
+            "2",
+            "--check-spp",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        Command::new(env!("CARGO_BIN_EXE_rangewalk"))
+            .args(&args)
+            .env("RANGEWALK_PYTHON", "/nonexistent/python")
+            .output()
+            .unwrap()
+    };
+    let o = walk(&[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("make deps")
+            && err.contains("--no-flip")
+            && err.contains("/nonexistent/python"),
+        "{err}"
+    );
+    assert!(!out.exists() && !dir.path().join("walk.partial").exists());
+
+    let o = walk(&["--no-flip"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let line = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        line.contains("FLIP left out (--no-flip)") && !line.contains("mean FLIP"),
+        "{line}"
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let checks = summary["checks"].as_array().unwrap();
+    assert!(!checks.is_empty());
+    assert!(checks
+        .iter()
+        .all(|c| c["flip"].is_null() && c["block_lrms"].is_f64()));
+    let (_, height, _) = png_bytes(&out.join("contact.png"));
+    assert_eq!(height, 2 * 8 + 4, "two rows without FLIP");
+
+    // --no-flip means nothing without a check.
+    let o = rangewalk(&[
+        "walk",
+        bake_dir.to_str().unwrap(),
+        "--path",
+        "walk",
+        "--no-flip",
+        "--out",
+        "x",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("--check-every"),
+        "{err}"
     );
 }
 

@@ -35,8 +35,9 @@ pub enum Experiment {
     /// The whole framework (plan, simplification and radiosity, bake,
     /// synthesis) on a walk path, every phase timed, every frame against a
     /// path-traced frame, with the path tracer's time to the same error and
-    /// the frames at which the bake pays (paper Table 5); writes table.md,
-    /// qualities.csv, frames.csv, convergence.csv, plots and image strips.
+    /// the frames at which the bake pays, at equal LRMS and at equal FLIP
+    /// (paper Table 5); writes table.md, qualities.csv, frames.csv,
+    /// convergence.csv, plots and image strips.
     Walkthrough(Walkthrough),
 }
 
@@ -45,14 +46,18 @@ fn sequence_summary(qualities: &[synthesis::SequenceQuality]) {
     for q in qualities {
         for m in &q.modes {
             println!(
-                "q = {}, {}: {} base image(s), {:.3} s synthesis + {:.3} s loading for {} frames, mean LRMS {:.4}",
+                "q = {}, {}: {} base image(s), {:.3} s synthesis + {:.3} s loading for {} frames, mean LRMS {:.4}, mean block LRMS {:.4}, mean block p99 {:.4}{}",
                 q.quality,
                 <&str>::from(m.mode),
                 q.baked_images,
                 m.synth_s(),
                 m.load_s(),
                 m.frames.len(),
-                m.mean_lrms()
+                m.mean_lrms(),
+                m.mean_block_lrms(),
+                m.mean_block_p99(),
+                synthesis::mean_flip(&m.frames)
+                    .map_or(String::new(), |f| format!(", mean FLIP {f:.4}"))
             );
         }
     }

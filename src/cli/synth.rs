@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use rangewalk::bake::Bake;
+use rangewalk::eval::flip::Flip;
 use rangewalk::eval::walkcheck::ReferenceChecks;
 use rangewalk::image;
 use rangewalk::scene::Scene;
@@ -243,13 +244,19 @@ pub struct WalkArgs {
     /// Frames per second of scene time [default: the scene's].
     #[arg(long)]
     pub fps: Option<f32>,
-    /// Path-trace every n-th frame (and the last) too: their LRMS goes in
-    /// the summary, the frames side by side in contact.png.
+    /// Path-trace every n-th frame (and the last) too: their LRMS, bias,
+    /// 8x8-block LRMS and 99th percentile, and FLIP go in the summary;
+    /// contact.png shows each synthesized above its reference above FLIP's
+    /// error map.
     #[arg(long)]
     pub check_every: Option<usize>,
     /// Samples per pixel of those reference frames.
     #[arg(long, default_value_t = 256)]
     pub check_spp: u32,
+    /// Leave FLIP out of the check (when the Python environment of `make
+    /// deps` is not installed).
+    #[arg(long, requires = "check_every")]
+    pub no_flip: bool,
     #[command(flatten)]
     pub synth: SynthOptions,
 }
@@ -271,7 +278,21 @@ pub fn walk(args: &WalkArgs) -> Result<()> {
     };
     let mut checks = match args.check_every {
         None => None,
-        Some(every) => Some(ReferenceChecks::new(every, args.check_spp, options.seed)?),
+        Some(every) => {
+            let flip = if args.no_flip {
+                None
+            } else {
+                Some(Flip::locate().context(
+                    "--check-every measures FLIP against the references; pass --no-flip to leave it out",
+                )?)
+            };
+            Some(ReferenceChecks::new(
+                every,
+                args.check_spp,
+                options.seed,
+                flip,
+            )?)
+        }
     };
     let s = walk::walk(
         &mut synth,
@@ -298,17 +319,38 @@ pub fn walk(args: &WalkArgs) -> Result<()> {
         s.bytes_per_base_pixel
     );
     if !s.checks.is_empty() {
-        let n = s.checks.len() as f64;
-        let lrms = s.checks.iter().map(|c| c.lrms).sum::<f64>() / n;
-        let bias = s.checks.iter().map(|c| c.bias).sum::<f64>() / n;
-        let seconds: f64 = s.checks.iter().map(|c| c.reference_seconds).sum();
-        println!(
-            "checked {} frame(s) against {}-spp path-traced references ({seconds:.3} s to render): mean LRMS {lrms:.4}, mean bias {:+.1}%; {} shows them, synthesized above reference",
-            s.checks.len(),
-            args.check_spp,
-            100.0 * bias,
-            s.out.join("contact.png").display()
-        );
+        println!("{}", check_line(&s.checks, args.check_spp, &s.out));
     }
     Ok(())
+}
+
+/// The line that sums up a walk's checks: the mean of each error over the
+/// checked frames, and what contact.png shows, row by row.
+fn check_line(checks: &[walk::FrameCheck], spp: u32, out: &Path) -> String {
+    let mean =
+        |f: fn(&walk::FrameCheck) -> f64| checks.iter().map(f).sum::<f64>() / checks.len() as f64;
+    let seconds: f64 = checks.iter().map(|c| c.reference_seconds).sum();
+    let flips: Option<Vec<f64>> = checks.iter().map(|c| c.flip).collect();
+    let (flip, rows) = match flips {
+        Some(v) => (
+            format!(", mean FLIP {:.4}", v.iter().sum::<f64>() / v.len() as f64),
+            "synthesized (top row), path-traced (middle) and FLIP's error map (bottom: black \
+             for no visible difference, through purple and orange to pale yellow at FLIP 1)",
+        ),
+        None => (
+            "; FLIP left out (--no-flip)".to_string(),
+            "synthesized (top row) above path-traced",
+        ),
+    };
+    format!(
+        "checked {} frame(s) against {spp}-spp path-traced references ({seconds:.3} s to render): \
+         mean LRMS {:.4}, mean bias {:+.1}%, mean 8x8-block LRMS {:.4}, mean block p99 {:.4}{flip}; \
+         {} shows them: {rows}",
+        checks.len(),
+        mean(|c| c.lrms),
+        100.0 * mean(|c| c.bias),
+        mean(|c| c.block_lrms),
+        mean(|c| c.block_p99),
+        out.join("contact.png").display()
+    )
 }

@@ -140,6 +140,8 @@ pub struct ConvergencePoint {
     pub spp: u32,
     pub seconds: f64,
     pub error: ImageError,
+    /// Mean HDR-FLIP; `None` when FLIP is left out.
+    pub flip: Option<f64>,
 }
 
 /// The whole experiment's measurements.
@@ -239,11 +241,16 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
         .collect();
     let max_spp = (args.reference_spp / 4).max(1);
     let target = Target {
+        max_spp,
         seconds: budgets.iter().copied().fold(0.0, f64::max),
         lrms: runs
             .iter()
             .map(|r| r.frames[preview_frame].error.lrms)
             .fold(f64::INFINITY, f64::min),
+        flip: runs
+            .iter()
+            .filter_map(|r| r.frames[preview_frame].flip)
+            .reduce(f64::min),
     };
     let convergence = convergence(
         &scene,
@@ -251,8 +258,8 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
         &camera,
         times[preview_frame],
         refs[preview_frame],
-        max_spp,
         target,
+        flip.as_ref(),
     )?;
     let mut equal_time: Vec<PathTracerRun> = Vec::new();
     let mut by_spp: HashMap<u32, usize> = HashMap::new();
@@ -467,26 +474,43 @@ fn path_tracer_run(
     })
 }
 
-/// Where the path tracer's convergence curve may stop: past the largest
-/// cost per frame and below the smallest error of the qualities measured,
-/// so that the plot shows where (and whether) it crosses them.
+/// Where the path tracer's convergence curve may stop: at `max_spp`, or
+/// past the largest cost per frame and below the smallest error of the
+/// qualities measured, in LRMS and in FLIP, so that the plot shows where
+/// (and whether) it crosses them and their sample counts at equal error
+/// are read off measured points.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Target {
+    pub max_spp: u32,
     pub seconds: f64,
     pub lrms: f64,
+    /// `None` when FLIP is left out.
+    pub flip: Option<f64>,
+}
+
+impl Target {
+    /// Whether the curve ends at `point`.
+    fn reached(&self, point: &ConvergencePoint) -> bool {
+        let below_flip = match (point.flip, self.flip) {
+            (Some(f), Some(target)) => f < target,
+            _ => true,
+        };
+        point.spp >= self.max_spp
+            || (point.seconds > 2.0 * self.seconds && point.error.lrms < self.lrms && below_flip)
+    }
 }
 
 /// The path tracer's error on one frame at 1, 2, 4, ... samples per pixel,
-/// up to `max_spp` or until it has passed `target` in time (twice over)
-/// and in error.
+/// until it reaches `target`'s sample count or has passed it in time
+/// (twice over) and in error; FLIP of every point unless `flip` is `None`.
 pub(crate) fn convergence(
     scene: &Scene,
     engine: &mut dyn InstancedEngine,
     camera: &Camera,
     t: f32,
     reference: &[Vec3],
-    max_spp: u32,
     target: Target,
+    flip: Option<&Flip>,
 ) -> Result<Vec<ConvergencePoint>> {
     let mut points = Vec::new();
     let mut spp = 1;
@@ -498,19 +522,26 @@ pub(crate) fn convergence(
             None,
         )
         .with_context(|| format!("path tracer convergence at {spp} spp"))?;
+        let flip = flip
+            .map(|f| f.hdr_mean(camera.width, camera.height, reference, &radiance))
+            .transpose()
+            .with_context(|| format!("FLIP of the path tracer at {spp} spp"))?;
         eprintln!(
-            "path tracer convergence: {spp} spp: LRMS {:.4} ({seconds:.3} s)",
-            error.lrms
+            "path tracer convergence: {spp} spp: LRMS {:.4}{} ({seconds:.3} s)",
+            error.lrms,
+            flip.map_or(String::new(), |f| format!(", FLIP {f:.4}"))
         );
-        points.push(ConvergencePoint {
+        let point = ConvergencePoint {
             spp,
             seconds,
             error,
-        });
-        if spp >= max_spp || (seconds > 2.0 * target.seconds && error.lrms < target.lrms) {
+            flip,
+        };
+        points.push(point);
+        if target.reached(&point) {
             return Ok(points);
         }
-        spp = (spp * 2).min(max_spp);
+        spp = (spp * 2).min(target.max_spp);
     }
 }
 
@@ -551,8 +582,11 @@ mod tests {
             error: ImageError {
                 lrms: 1.0 / (spp as f64).sqrt(),
                 bias: 0.0,
+                block_lrms: 0.5 / (spp as f64).sqrt(),
+                block_p99: 1.0 / (spp as f64).sqrt(),
                 pixels: 1,
             },
+            flip: None,
         }
     }
 
@@ -562,6 +596,32 @@ mod tests {
         assert_eq!(equal_time_spp(&curve, 2.0, 64), (10, false));
         assert_eq!(equal_time_spp(&curve, 0.01, 64), (1, false));
         assert_eq!(equal_time_spp(&curve, 100.0, 64), (64, true));
+    }
+
+    #[test]
+    fn the_curve_runs_until_it_passes_the_target_in_time_lrms_and_flip() {
+        let target = Target {
+            max_spp: 64,
+            seconds: 0.5,
+            lrms: 0.3,
+            flip: Some(0.1),
+        };
+        // 16 spp: 1.6 s (past twice 0.5 s), LRMS 0.25 below 0.3.
+        let mut p = point(16, 1.6);
+        p.flip = Some(0.2);
+        assert!(!target.reached(&p), "FLIP 0.2 is above the target's 0.1");
+        p.flip = Some(0.05);
+        assert!(target.reached(&p));
+        // Not yet past the time, or not below the LRMS.
+        assert!(!target.reached(&point(16, 0.9)));
+        assert!(!target.reached(&point(4, 1.6)));
+        // Without FLIP, time and LRMS decide; the sample cap always ends it.
+        let no_flip = Target {
+            flip: None,
+            ..target
+        };
+        assert!(no_flip.reached(&point(16, 1.6)));
+        assert!(target.reached(&point(64, 0.01)));
     }
 
     #[test]

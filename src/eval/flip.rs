@@ -3,7 +3,8 @@
 //! package `flip-evaluator`) in the project's virtual environment.
 //!
 //! Images go to the package as raw little-endian `float32` files (`H x W x 3`,
-//! linear RGB) and come back as one mean per pair; one Python process serves
+//! linear RGB) and come back as one mean per pair, and where asked for, the
+//! per-pixel error map in FLIP's own colour map; one Python process serves
 //! a whole batch, so the interpreter starts once per experiment stage rather
 //! than once per frame. Radiance is high dynamic range, so HDR-FLIP is used:
 //! it tone-maps both images at the exposures the reference spans and keeps
@@ -35,9 +36,21 @@ for job in json.load(sys.stdin):
     shape = (job["height"], job["width"], 3)
     ref = np.fromfile(job["reference"], dtype="<f4").reshape(shape)
     test = np.fromfile(job["test"], dtype="<f4").reshape(shape)
-    _, mean, _ = flip.evaluate(ref, test, "HDR", applyMagma=False)
+    err, mean, _ = flip.evaluate(ref, test, "HDR", applyMagma=bool(job["map"]))
+    if job["map"]:
+        np.ascontiguousarray(err, dtype="<f4").tofile(job["map"])
     print(repr(float(mean)), flush=True)
 "#;
+
+/// One pair's FLIP: its mean and its per-pixel error map.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FlipMap {
+    pub mean: f64,
+    /// The error map in FLIP's colour map (magma: black for no visible
+    /// difference, through purple and orange to pale yellow at 1), as
+    /// 8-bit sRGB `RGBRGB...`, row-major: the bytes FLIP's own tool writes.
+    pub rgb: Vec<u8>,
+}
 
 /// A Python interpreter known to have `flip_evaluator` and numpy.
 #[derive(Clone, Debug)]
@@ -100,6 +113,34 @@ impl Flip {
         height: u32,
         pairs: &[(&[Vec3], &[Vec3])],
     ) -> Result<Vec<f64>> {
+        Ok(self
+            .run(width, height, pairs, false)?
+            .into_iter()
+            .map(|m| m.mean)
+            .collect())
+    }
+
+    /// The mean HDR-FLIP and the error map of every `(reference, test)`
+    /// pair, in one run of the interpreter: what a viewer would notice,
+    /// and where.
+    pub fn hdr_maps(
+        &self,
+        width: u32,
+        height: u32,
+        pairs: &[(&[Vec3], &[Vec3])],
+    ) -> Result<Vec<FlipMap>> {
+        self.run(width, height, pairs, true)
+    }
+
+    /// FLIP of every pair, with error maps when `maps` (else their `rgb`
+    /// is empty).
+    fn run(
+        &self,
+        width: u32,
+        height: u32,
+        pairs: &[(&[Vec3], &[Vec3])],
+        maps: bool,
+    ) -> Result<Vec<FlipMap>> {
         if pairs.is_empty() {
             return Ok(Vec::new());
         }
@@ -121,9 +162,10 @@ impl Flip {
             );
             write_f32(&r, reference)?;
             write_f32(&t, test)?;
+            let map = maps.then(|| dir.0.join(format!("{k}-map.f32")));
             jobs.push(serde_json::json!({
                 "width": width, "height": height,
-                "reference": r, "test": t,
+                "reference": r, "test": t, "map": map,
             }));
         }
         let mut child = Command::new(&self.python)
@@ -164,8 +206,37 @@ impl Flip {
             means,
             pairs.len()
         );
-        Ok(means)
+        means
+            .into_iter()
+            .zip(&jobs)
+            .map(|(mean, job)| {
+                let rgb = match job["map"].as_str() {
+                    Some(path) => read_map(Path::new(path), n)?,
+                    None => Vec::new(),
+                };
+                Ok(FlipMap { mean, rgb })
+            })
+            .collect()
     }
+}
+
+/// A colour-mapped error map of `n` pixels as FLIP wrote it (`float32`
+/// sRGB in [0, 1]), in bytes as FLIP's tool writes them: `round(255 v)`.
+fn read_map(path: &Path, n: usize) -> Result<Vec<u8>> {
+    let bytes =
+        std::fs::read(path).with_context(|| format!("reading FLIP's map {}", path.display()))?;
+    ensure!(
+        bytes.len() == 4 * 3 * n,
+        "FLIP wrote {} bytes of error map for {n} pixels",
+        bytes.len()
+    );
+    Ok(bytes
+        .chunks_exact(4)
+        .map(|b| {
+            let v = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            (255.0 * v.clamp(0.0, 1.0)).round() as u8
+        })
+        .collect())
 }
 
 fn missing_python(python: &Path, e: &std::io::Error) -> anyhow::Error {
@@ -261,6 +332,41 @@ mod tests {
         assert!(m[1] > 0.01 && m[1] <= 1.0, "FLIP {}", m[1]);
         // One pair alone gives the same answer as in a batch.
         assert_eq!(f.hdr_mean(24, 16, &a, &b).unwrap(), m[1]);
+    }
+
+    #[test]
+    fn error_maps_show_where_images_differ() {
+        let f = flip();
+        let a = pattern(24, 16);
+        // A bright square of 6 x 6 pixels from (8, 4).
+        let inside = |i: usize| (8..14).contains(&(i % 24)) && (4..10).contains(&(i / 24));
+        let b: Vec<Vec3> = a
+            .iter()
+            .enumerate()
+            .map(|(i, c)| if inside(i) { *c * 8.0 } else { *c })
+            .collect();
+        let maps = f.hdr_maps(24, 16, &[(&a, &a), (&a, &b)]).unwrap();
+        // The means are those without maps.
+        let means = f.hdr_means(24, 16, &[(&a, &a), (&a, &b)]).unwrap();
+        assert_eq!(maps.iter().map(|m| m.mean).collect::<Vec<_>>(), means);
+        for m in &maps {
+            assert_eq!(m.rgb.len(), 24 * 16 * 3);
+        }
+        // No difference is magma's darkest colour everywhere: (0.001462,
+        // 0.000466, 0.013866) in FLIP's map, bytes (0, 0, 4).
+        assert!(
+            maps[0].rgb.chunks(3).all(|p| p == [0, 0, 4]),
+            "{:?}",
+            &maps[0].rgb[..6]
+        );
+        // The square is brighter in the map than the corner far from it.
+        let brightness = |i: usize| {
+            maps[1].rgb[3 * i..3 * i + 3]
+                .iter()
+                .map(|&v| v as u32)
+                .sum::<u32>()
+        };
+        assert!(brightness(7 * 24 + 11) > brightness(15 * 24 + 23) + 100);
     }
 
     #[test]

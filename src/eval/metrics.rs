@@ -1,6 +1,7 @@
-//! Pixel error of a rendered image against a reference, on luminance, as
-//! the paper measures it (§5: "luminance RMS / reference solution average
-//! luminance").
+//! Error of a rendered image against a reference, on luminance: per pixel,
+//! as the paper measures it (§5: "luminance RMS / reference solution
+//! average luminance"), and per 8×8 block, which keeps what a viewer sees
+//! (seams, wrong shadows, patches of bias) and drops per-pixel noise.
 
 use anyhow::{bail, ensure, Result};
 use glam::Vec3;
@@ -22,9 +23,27 @@ pub struct ImageError {
     /// Relative bias `mean(Y_test) / mean(Y_ref) - 1`: what averaging many
     /// frames would not remove (a missing bounce shows here, noise does not).
     pub bias: f64,
+    /// 8×8-block LRMS: the RMS over [`BLOCK`]×[`BLOCK`] blocks of
+    /// `(mean Y_test − mean Y_ref over the block) / mean(Y_ref)`, each block
+    /// weighted by its pixels. Zero-mean noise averages out within a block,
+    /// structure does not; it never exceeds `lrms`.
+    pub block_lrms: f64,
+    /// The [`BLOCK_PERCENTILE`] percentile over blocks of
+    /// `|mean Y_test − mean Y_ref over the block| / mean(Y_ref)`: a local
+    /// artifact that the means hide, once it covers more than 1% of the
+    /// blocks (of a 256² frame's 1,024 blocks, 11).
+    pub block_p99: f64,
     /// Pixels the statistics were taken over.
     pub pixels: usize,
 }
+
+/// Side of the blocks of [`ImageError::block_lrms`] and
+/// [`ImageError::block_p99`], in pixels: about the size of a detail a
+/// viewer picks out of a frame, and much larger than a pixel's noise.
+pub const BLOCK: u32 = 8;
+
+/// The percentile of [`ImageError::block_p99`].
+pub const BLOCK_PERCENTILE: usize = 99;
 
 /// Row-major linear RGB and the size it has: images are compared only
 /// where their widths and heights agree, not merely their pixel counts (a
@@ -60,6 +79,12 @@ impl<'a> From<&'a RangeImage> for Pixels<'a> {
 
 /// Compares `test` with `reference` over the pixels where `mask` is true,
 /// or over all pixels without a mask.
+///
+/// Blocks tile the image from its top-left corner; where the width or
+/// height is not a multiple of [`BLOCK`], the last column or row of blocks
+/// is narrower and counts as the smaller blocks it is (by its pixels in
+/// the RMS, as one block in the percentile). With a mask, a block is the
+/// selected pixels in it, and a block with none is left out.
 ///
 /// Errors, rather than a meaningless number, when the sizes differ (width
 /// and height, not only the pixel count), an image holds other than its
@@ -98,6 +123,13 @@ pub fn compare<'a, 'b>(
         );
     }
     let (mut n, mut sum_ref, mut sum_test, mut sum_sq) = (0usize, 0.0f64, 0.0f64, 0.0f64);
+    let blocks_across = t.width.div_ceil(BLOCK) as usize;
+    let block_of = |i: usize| {
+        let (x, y) = (i % t.width as usize, i / t.width as usize);
+        (y / BLOCK as usize) * blocks_across + x / BLOCK as usize
+    };
+    // Per block: the sum of Y_test − Y_ref and the pixels selected.
+    let mut blocks = vec![(0.0f64, 0usize); blocks_across * t.height.div_ceil(BLOCK) as usize];
     for (i, (&t, &r)) in test.iter().zip(reference).enumerate() {
         if mask.is_some_and(|m| !m[i]) {
             continue;
@@ -113,6 +145,9 @@ pub fn compare<'a, 'b>(
         sum_ref += yr;
         sum_test += yt;
         sum_sq += (yt - yr) * (yt - yr);
+        let b = &mut blocks[block_of(i)];
+        b.0 += yt - yr;
+        b.1 += 1;
     }
     ensure!(n > 0, "no pixel to compare (empty image or empty mask)");
     let mean_ref = sum_ref / n as f64;
@@ -120,11 +155,32 @@ pub fn compare<'a, 'b>(
         mean_ref > 0.0,
         "the reference's mean luminance is {mean_ref}: a relative error needs a lit reference"
     );
+    let (block_lrms, block_p99) = block_errors(&blocks, n, mean_ref);
     Ok(ImageError {
         lrms: (sum_sq / n as f64).sqrt() / mean_ref,
         bias: sum_test / sum_ref - 1.0,
+        block_lrms,
+        block_p99,
         pixels: n,
     })
+}
+
+/// The pixel-weighted RMS and the [`BLOCK_PERCENTILE`] percentile (the
+/// nearest rank: the least value that at least that percentage of blocks
+/// do not exceed) of the blocks' mean differences, relative to `mean_ref`,
+/// from each block's summed difference and pixel count; `n` pixels in all.
+fn block_errors(blocks: &[(f64, usize)], n: usize, mean_ref: f64) -> (f64, f64) {
+    let mut sum_sq = 0.0;
+    let mut means: Vec<f64> = Vec::with_capacity(blocks.len());
+    for &(d, k) in blocks.iter().filter(|b| b.1 > 0) {
+        let m = d / k as f64;
+        sum_sq += k as f64 * m * m;
+        means.push(m.abs());
+    }
+    means.sort_by(f64::total_cmp);
+    let rank = (BLOCK_PERCENTILE * means.len()).div_ceil(100);
+    let p99 = means[rank.clamp(1, means.len()) - 1];
+    ((sum_sq / n as f64).sqrt() / mean_ref, p99 / mean_ref)
 }
 
 /// Refuses to compare images of different views: another projection (or
@@ -205,6 +261,7 @@ mod tests {
         let a = gradient(64);
         let e = compare(row(&a), row(&a), None).unwrap();
         assert_eq!((e.lrms, e.bias, e.pixels), (0.0, 0.0, 64));
+        assert_eq!((e.block_lrms, e.block_p99), (0.0, 0.0));
     }
 
     #[test]
@@ -253,6 +310,14 @@ mod tests {
             let e = compare(row(&scale(&t)), row(&scale(&r)), None).unwrap();
             assert!((e.lrms - base.lrms).abs() < 1e-6 * base.lrms, "{k}: {e:?}");
             assert!((e.bias - base.bias).abs() < 1e-6 * base.bias, "{k}: {e:?}");
+            assert!(
+                (e.block_lrms - base.block_lrms).abs() < 1e-6 * base.block_lrms,
+                "{k}: {e:?}"
+            );
+            assert!(
+                (e.block_p99 - base.block_p99).abs() < 1e-6 * base.block_p99,
+                "{k}: {e:?}"
+            );
         }
     }
 
@@ -263,6 +328,131 @@ mod tests {
         let mask = [true, true, false, true];
         let e = compare(row(&t), row(&r), Some(&mask)).unwrap();
         assert_eq!((e.lrms, e.bias, e.pixels), (0.0, 0.0, 3));
+    }
+
+    /// A uniform grey reference of `w x h` and a copy to alter.
+    fn grey(w: u32, h: u32) -> (Vec<Vec3>, Vec<Vec3>) {
+        let r = vec![Vec3::ONE; (w * h) as usize];
+        (r.clone(), r)
+    }
+
+    #[test]
+    fn per_pixel_noise_vanishes_in_blocks() {
+        // A ±0.5 checkerboard on grey: LRMS 0.5, but every block holds as
+        // many pixels above as below.
+        let (r, mut t) = grey(32, 24);
+        for (i, c) in t.iter_mut().enumerate() {
+            let (x, y) = (i % 32, i / 32);
+            *c += Vec3::splat(if (x + y) % 2 == 0 { 0.5 } else { -0.5 });
+        }
+        let e = compare(Pixels::new(32, 24, &t), Pixels::new(32, 24, &r), None).unwrap();
+        assert!((e.lrms - 0.5).abs() < 1e-6, "{e:?}");
+        assert!(e.block_lrms < 1e-9 && e.block_p99 < 1e-9, "{e:?}");
+    }
+
+    #[test]
+    fn a_uniform_error_is_the_same_in_blocks() {
+        let (r, t) = grey(24, 16);
+        let t: Vec<Vec3> = t.iter().map(|c| *c * 1.25).collect();
+        let e = compare(Pixels::new(24, 16, &t), Pixels::new(24, 16, &r), None).unwrap();
+        for v in [e.lrms, e.block_lrms, e.block_p99] {
+            assert!((v - 0.25).abs() < 1e-6, "{e:?}");
+        }
+    }
+
+    /// A wrong patch of `blocks` whole blocks (error 1 against a reference
+    /// of 1) in a 256² frame of 1,024 blocks.
+    fn patch(blocks: usize) -> ImageError {
+        let (r, mut t) = grey(256, 256);
+        for b in 0..blocks {
+            let (bx, by) = (b % 32, b / 32);
+            for y in 0..8 {
+                for x in 0..8 {
+                    t[(by * 8 + y) * 256 + bx * 8 + x] = Vec3::splat(2.0);
+                }
+            }
+        }
+        compare(Pixels::new(256, 256, &t), Pixels::new(256, 256, &r), None).unwrap()
+    }
+
+    #[test]
+    fn a_local_artifact_shows_in_the_block_percentile_alone() {
+        // 16 of 1,024 blocks wrong by 1: a bias of 1/64 and an LRMS of
+        // √(16/1024) = 1/8, but the 99th percentile is the patch's error.
+        let e = patch(16);
+        assert!((e.bias - 1.0 / 64.0).abs() < 1e-6, "{e:?}");
+        assert!((e.lrms - 0.125).abs() < 1e-6, "{e:?}");
+        assert!((e.block_lrms - 0.125).abs() < 1e-6, "{e:?}");
+        assert!((e.block_p99 - 1.0).abs() < 1e-6, "{e:?}");
+    }
+
+    #[test]
+    fn the_percentile_is_the_nearest_rank() {
+        // Of 1,024 blocks the 1,014th smallest (⌈0.99 · 1024⌉) is the
+        // 99th percentile: 10 wrong blocks lie above it, 11 reach it.
+        assert_eq!(patch(10).block_p99, 0.0);
+        assert!((patch(11).block_p99 - 1.0).abs() < 1e-6);
+        // One block of one (a frame smaller than a block) is its own.
+        let e = compare(row(&[Vec3::splat(3.0)]), row(&[Vec3::ONE]), None).unwrap();
+        assert!((e.block_p99 - 2.0).abs() < 1e-6, "{e:?}");
+    }
+
+    #[test]
+    fn partial_blocks_count_by_their_pixels() {
+        // 10 x 3: a block of 8 x 3 pixels all 0.5 too bright and one of
+        // 2 x 3 whose differences are +1, −1, +1, −1, +3, +3 (mean +1).
+        let (r, mut t) = grey(10, 3);
+        let right = [1.0, -1.0, 1.0, -1.0, 3.0, 3.0];
+        for y in 0..3 {
+            for x in 0..10 {
+                let d = if x < 8 { 0.5 } else { right[y * 2 + x - 8] };
+                t[y * 10 + x] += Vec3::splat(d);
+            }
+        }
+        let e = compare(Pixels::new(10, 3, &t), Pixels::new(10, 3, &r), None).unwrap();
+        // Blocks: √((24 · 0.25 + 6 · 1) / 30); pixels: √((6 + 22) / 30).
+        assert!((e.block_lrms - 0.4f64.sqrt()).abs() < 1e-6, "{e:?}");
+        assert!((e.lrms - (28.0f64 / 30.0).sqrt()).abs() < 1e-6, "{e:?}");
+        // Two blocks: the larger error is the 99th percentile.
+        assert!((e.block_p99 - 1.0).abs() < 1e-6, "{e:?}");
+    }
+
+    #[test]
+    fn masked_pixels_leave_their_blocks() {
+        // 16 x 8: the right block's pixels are all masked, except one.
+        let (r, mut t) = grey(16, 8);
+        for y in 0..8 {
+            for x in 8..16 {
+                t[y * 16 + x] = Vec3::splat(100.0);
+            }
+        }
+        let mut mask: Vec<bool> = (0..128).map(|i| i % 16 < 8).collect();
+        let e = compare(Pixels::new(16, 8, &t), Pixels::new(16, 8, &r), Some(&mask)).unwrap();
+        assert_eq!((e.block_lrms, e.block_p99), (0.0, 0.0));
+        // One pixel of it kept: a block of one pixel, 99 off.
+        mask[8] = true;
+        let e = compare(Pixels::new(16, 8, &t), Pixels::new(16, 8, &r), Some(&mask)).unwrap();
+        assert!((e.block_p99 - 99.0).abs() < 1e-6, "{e:?}");
+        assert!((e.block_lrms - 99.0 / 65f64.sqrt()).abs() < 1e-6, "{e:?}");
+    }
+
+    /// A block's mean difference is never farther from zero than the RMS
+    /// of its pixels' (Jensen), so neither is the pixel-weighted RMS of
+    /// the blocks' from the frame's.
+    #[test]
+    fn block_lrms_never_exceeds_lrms() {
+        let mut rng = crate::rng::Pcg32::for_sample(7, 0, 0);
+        for (w, h) in [(8, 8), (13, 9), (40, 17), (64, 64)] {
+            let n = (w * h) as usize;
+            let r: Vec<Vec3> = (0..n).map(|_| Vec3::splat(0.1 + rng.next_f32())).collect();
+            let t: Vec<Vec3> = r
+                .iter()
+                .map(|c| *c * (0.5 + rng.next_f32()) + Vec3::splat(0.2 * rng.next_f32()))
+                .collect();
+            let e = compare(Pixels::new(w, h, &t), Pixels::new(w, h, &r), None).unwrap();
+            assert!(e.block_lrms <= e.lrms * (1.0 + 1e-9), "{w}x{h}: {e:?}");
+            assert!(e.block_lrms > 0.0 && e.block_p99 > 0.0, "{w}x{h}: {e:?}");
+        }
     }
 
     #[test]

@@ -14,6 +14,7 @@ use super::experiment::{
 use super::metrics::luminance;
 use super::plot::{self, Plot, Scale, Series};
 use super::report::{sig, Table};
+use super::synthesis::Measure;
 use crate::image;
 
 /// The paper's relative LRMS of its wavelet-radiosity (WR) images at
@@ -55,8 +56,9 @@ fn max(xs: impl Iterator<Item = f64>) -> f64 {
     xs.fold(f64::NAN, f64::max)
 }
 
-/// Mean and maximum LRMS, mean bias, mean and maximum FLIP of some frames.
-fn errors(frames: &[FrameResult]) -> [String; 5] {
+/// Mean and maximum LRMS, mean bias, mean block LRMS and block p99, mean
+/// and maximum FLIP of some frames.
+fn errors(frames: &[FrameResult]) -> [String; 7] {
     let flip = |f: fn(&mut dyn Iterator<Item = f64>) -> f64| {
         let mut it = frames.iter().filter_map(|x| x.flip);
         if frames.iter().any(|x| x.flip.is_none()) {
@@ -69,6 +71,8 @@ fn errors(frames: &[FrameResult]) -> [String; 5] {
         sig(mean(frames.iter().map(|f| f.error.lrms)), 3),
         sig(max(frames.iter().map(|f| f.error.lrms)), 3),
         format!("{:+.4}", mean(frames.iter().map(|f| f.error.bias))),
+        sig(mean(frames.iter().map(|f| f.error.block_lrms)), 3),
+        sig(mean(frames.iter().map(|f| f.error.block_p99)), 3),
         flip(|it| mean(it)),
         flip(|it| max(it)),
     ]
@@ -92,9 +96,7 @@ fn markdown(r: &IndirectResults) -> Result<String> {
     let _ = writeln!(
         md,
         "Camera `{}`, {}x{}, {n} frame(s) at t = {} s; ray engine {}; multipass renderer at {} spp; \
-         references path-traced at {} spp; {} threads. Errors are per frame against the reference: \
-         LRMS = RMS(Y - Y_ref) / mean(Y_ref) on Rec. 709 luminance, bias = mean(Y) / mean(Y_ref) - 1, \
-         FLIP = mean HDR-FLIP. Times are wall-clock seconds.\n",
+         references path-traced at {} spp; {} threads. Times are wall-clock seconds.\n",
         a.camera,
         a.size.0,
         a.size.1,
@@ -104,6 +106,7 @@ fn markdown(r: &IndirectResults) -> Result<String> {
         a.reference_spp,
         rayon::current_num_threads()
     );
+    md.push_str(super::synthesis::ERRORS_MD);
     if !r.notes.is_empty() {
         md.push_str("Stages left out and notes:\n\n");
         for note in &r.notes {
@@ -187,6 +190,8 @@ fn markdown(r: &IndirectResults) -> Result<String> {
         "mean LRMS",
         "max LRMS",
         "mean bias",
+        "mean block LRMS",
+        "mean block p99",
         "mean FLIP",
         "max FLIP",
         "paper LRMS (Cornell box)",
@@ -272,6 +277,8 @@ fn frames_csv(r: &IndirectResults) -> Result<Table> {
         "time_s",
         "lrms",
         "bias",
+        "block_lrms",
+        "block_p99",
         "flip",
         "interpolation_s",
         "render_s",
@@ -286,6 +293,8 @@ fn frames_csv(r: &IndirectResults) -> Result<Table> {
                 f.time.to_string(),
                 f.error.lrms.to_string(),
                 f.error.bias.to_string(),
+                f.error.block_lrms.to_string(),
+                f.error.block_p99.to_string(),
                 f.flip.map_or(String::new(), |x| x.to_string()),
                 f.interpolation_s.to_string(),
                 f.render_s.to_string(),
@@ -307,16 +316,27 @@ fn convergence_csv(r: &IndirectResults) -> Result<Table> {
     convergence_table(&r.convergence)
 }
 
-/// The path tracer's convergence curve: samples per pixel, seconds, LRMS
-/// and bias.
+/// The path tracer's convergence curve: samples per pixel, seconds, LRMS,
+/// bias, block LRMS, block p99 and FLIP (empty where left out).
 pub fn convergence_table(curve: &[ConvergencePoint]) -> Result<Table> {
-    let mut t = Table::new(["spp", "seconds", "lrms", "bias"]);
+    let mut t = Table::new([
+        "spp",
+        "seconds",
+        "lrms",
+        "bias",
+        "block_lrms",
+        "block_p99",
+        "flip",
+    ]);
     for p in curve {
         t.push([
             p.spp.to_string(),
             sig(p.seconds, 4),
             sig(p.error.lrms, 4),
             format!("{:+.5}", p.error.bias),
+            sig(p.error.block_lrms, 4),
+            sig(p.error.block_p99, 4),
+            p.flip.map_or(String::new(), |f| sig(f, 4)),
         ])?;
     }
     Ok(t)
@@ -343,7 +363,7 @@ fn plots(dir: &Path, r: &IndirectResults) -> Result<()> {
     plot::error_per_frame(dir, &series)?;
 
     let n = r.times.len() as f64;
-    let mut series = vec![convergence_series(&r.convergence)];
+    let mut series = vec![convergence_series(&r.convergence, Measure::Lrms)];
     series.extend(r.qualities.iter().map(|q| Series {
         label: format!("q = {}", q.quality),
         points: vec![(q.total_s() / n, mean(q.frames.iter().map(|f| f.error.lrms)))],
@@ -368,12 +388,15 @@ fn plots(dir: &Path, r: &IndirectResults) -> Result<()> {
     )
 }
 
-/// The path tracer's convergence curve as a plot series: LRMS against
-/// seconds per frame.
-pub fn convergence_series(curve: &[ConvergencePoint]) -> Series {
+/// The path tracer's convergence curve as a plot series: its error in
+/// `measure` against seconds per frame, where measured.
+pub fn convergence_series(curve: &[ConvergencePoint], measure: Measure) -> Series {
     Series {
         label: format!("path tracer, 1..{} spp", curve.last().map_or(0, |p| p.spp)),
-        points: curve.iter().map(|p| (p.seconds, p.error.lrms)).collect(),
+        points: curve
+            .iter()
+            .filter_map(|p| Some((p.seconds, measure.of(p)?)))
+            .collect(),
     }
 }
 
@@ -425,10 +448,30 @@ pub fn write_strip(
 /// one `exposure`; a row shorter than the longest is left white at its end.
 pub fn write_sheet(
     path: impl AsRef<Path>,
-    (w, h): (u32, u32),
+    size: (u32, u32),
     rows: &[Vec<&[Vec3]>],
     exposure: f32,
 ) -> Result<()> {
+    let tiles: Vec<Vec<Vec<u8>>> = rows
+        .iter()
+        .map(|row| {
+            row.iter()
+                .map(|img| image::tonemap_srgb8(img, exposure))
+                .collect()
+        })
+        .collect();
+    write_sheet_srgb8(path, size, &tiles)
+}
+
+/// Rows of 8-bit sRGB tiles (each `w x h`, `RGBRGB...`) in one PNG, with
+/// white gaps between them; a row shorter than the longest is left white
+/// at its end.
+pub fn write_sheet_srgb8(
+    path: impl AsRef<Path>,
+    (w, h): (u32, u32),
+    rows: &[Vec<Vec<u8>>],
+) -> Result<()> {
+    let path = path.as_ref();
     let gaps = |n: u32| n.saturating_sub(1) * STRIP_GAP;
     let columns = rows.iter().map(Vec::len).max().unwrap_or(0) as u32;
     let (width, height) = (
@@ -436,19 +479,24 @@ pub fn write_sheet(
         rows.len() as u32 * h + gaps(rows.len() as u32),
     );
     let mut rgb = vec![255u8; (width * height * 3) as usize];
+    let line = (w * 3) as usize;
     for (r, row) in rows.iter().enumerate() {
         let y0 = r as u32 * (h + STRIP_GAP);
-        for (i, img) in row.iter().enumerate() {
-            let tile = image::tonemap_srgb8(img, exposure);
+        for (i, tile) in row.iter().enumerate() {
+            anyhow::ensure!(
+                tile.len() == line * h as usize,
+                "writing {}: a tile of {} bytes is not {w}x{h} RGB",
+                path.display(),
+                tile.len()
+            );
             let x0 = i as u32 * (w + STRIP_GAP);
             for y in 0..h {
-                let from = (y * w * 3) as usize;
+                let from = y as usize * line;
                 let to = (((y0 + y) * width + x0) * 3) as usize;
-                rgb[to..to + (w * 3) as usize]
-                    .copy_from_slice(&tile[from..from + (w * 3) as usize]);
+                rgb[to..to + line].copy_from_slice(&tile[from..from + line]);
             }
         }
     }
-    image::png_io::write(path.as_ref(), width, height, &rgb)
-        .with_context(|| format!("writing {}", path.as_ref().display()))
+    image::png_io::write(path, width, height, &rgb)
+        .with_context(|| format!("writing {}", path.display()))
 }

@@ -617,6 +617,14 @@ impl ModeRun {
         mean(self.frames.iter().map(|f| f.error.bias))
     }
 
+    pub fn mean_block_lrms(&self) -> f64 {
+        mean(self.frames.iter().map(|f| f.error.block_lrms))
+    }
+
+    pub fn mean_block_p99(&self) -> f64 {
+        mean(self.frames.iter().map(|f| f.error.block_p99))
+    }
+
     /// Mean LRMS without the pixels that show light sources, over the
     /// frames that show one; `None` when none does.
     pub fn mean_lrms_without_emitters(&self) -> Option<f64> {
@@ -836,6 +844,8 @@ pub fn frames_csv(qualities: &[SequenceQuality]) -> Result<Table> {
         "lrms",
         "bias",
         "lrms_without_emitters",
+        "block_lrms",
+        "block_p99",
         "flip",
         "synth_s",
         "load_s",
@@ -855,6 +865,8 @@ pub fn frames_csv(qualities: &[SequenceQuality]) -> Result<Table> {
                     f.error.bias.to_string(),
                     f.without_emitters
                         .map_or(String::new(), |e| e.lrms.to_string()),
+                    f.error.block_lrms.to_string(),
+                    f.error.block_p99.to_string(),
                     f.flip.map_or(String::new(), |x| x.to_string()),
                     f.synth_s.to_string(),
                     f.load_s.to_string(),
@@ -943,12 +955,18 @@ pub fn differences(args: &CommonArgs, base_size: u32, what: &str) -> String {
         args.backend,
         rayon::current_num_threads()
     );
-    md.push_str(
-        "Errors against the reference: LRMS = RMS(Y - Y_ref) / mean(Y_ref) on Rec. 709 luminance over \
-         all pixels (holes count as black), bias = mean(Y) / mean(Y_ref) - 1, FLIP = mean HDR-FLIP.\n\n",
-    );
+    md.push_str("Holes in synthesized frames count as black.\n\n");
+    md.push_str(ERRORS_MD);
     md
 }
+
+/// What the error columns of every report mean.
+pub const ERRORS_MD: &str = "Errors against the reference: LRMS = RMS(Y - Y_ref) / mean(Y_ref) on \
+    Rec. 709 luminance over all pixels, bias = mean(Y) / mean(Y_ref) - 1, \
+    block LRMS = the same RMS over the means of 8x8 blocks (per-pixel noise averages out, seams and \
+    wrong patches stay), block p99 = the 99th percentile over blocks of |block mean - reference \
+    block mean| / mean(Y_ref) (a local artifact on more than 1% of the blocks), FLIP = mean \
+    HDR-FLIP (a perceptual difference in [0, 1]).\n\n";
 
 /// A list of notes under a heading, or nothing.
 pub fn notes_md(notes: &[String]) -> String {
@@ -972,49 +990,100 @@ pub enum Reach {
     /// The error is above the path tracer's at one sample per pixel: one
     /// sample (the least a frame can have) is counted.
     OneSample,
-    /// Below the curve's last point: extended as error ∝ 1/√spp, which
-    /// ignores the reference's own noise and so understates the samples.
+    /// Below the curve's last point: extended as LRMS ∝ 1/√spp, which
+    /// ignores the reference's own noise and so understates the samples;
+    /// FLIP, which follows no such law, along the slope of the curve's
+    /// last two points on log-log axes.
     Extrapolated,
 }
 
-/// Samples per pixel at which the path tracer's LRMS falls to `lrms`, read
-/// off its convergence curve: between the first measured point at or below
-/// `lrms` and the one before it, interpolated on log-log axes (where
-/// Monte Carlo error is a straight line).
-pub fn equal_error_spp(curve: &[ConvergencePoint], lrms: f64) -> Option<(f64, Reach)> {
-    let mut points: Vec<&ConvergencePoint> = curve
-        .iter()
-        .filter(|p| p.spp > 0 && p.error.lrms.is_finite() && p.error.lrms > 0.0)
-        .collect();
-    points.sort_by_key(|p| p.spp);
-    let first = points.first()?;
-    if !(lrms.is_finite() && lrms > 0.0) {
-        return None;
-    }
-    if lrms >= first.error.lrms {
-        return Some((first.spp as f64, Reach::OneSample));
-    }
-    for w in points.windows(2) {
-        let (a, b) = (w[0], w[1]);
-        if b.error.lrms <= lrms {
-            let (sa, sb) = ((a.spp as f64).ln(), (b.spp as f64).ln());
-            let (ea, eb) = (a.error.lrms.ln(), b.error.lrms.ln());
-            let s = sa + (lrms.ln() - ea) * (sb - sa) / (eb - ea);
-            return Some((s.exp(), Reach::Measured));
-        }
-    }
-    let last = points.last()?;
-    Some((
-        last.spp as f64 * (last.error.lrms / lrms).powi(2),
-        Reach::Extrapolated,
-    ))
+/// The error at which the path tracer is matched: users judge frames by
+/// looking, and a frame can match the path tracer's LRMS long before it
+/// looks as good (or the other way round).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Measure {
+    Lrms,
+    /// Mean HDR-FLIP.
+    Flip,
 }
 
-/// The path tracer's time per frame at the error `lrms` (its cost per
-/// sample times [`equal_error_spp`]), with the samples and how they were
-/// found.
-pub fn equal_error_seconds(curve: &[ConvergencePoint], lrms: f64) -> Option<(f64, f64, Reach)> {
-    let (spp, reach) = equal_error_spp(curve, lrms)?;
+impl Measure {
+    /// The curve point's error in this measure, where it was measured.
+    pub fn of(self, p: &ConvergencePoint) -> Option<f64> {
+        match self {
+            Measure::Lrms => Some(p.error.lrms),
+            Measure::Flip => p.flip,
+        }
+    }
+
+    /// The mean error of `m`'s frames, where every frame has it.
+    pub fn mean(self, m: &ModeRun) -> Option<f64> {
+        match self {
+            Measure::Lrms => Some(m.mean_lrms()),
+            Measure::Flip => mean_flip(&m.frames),
+        }
+    }
+}
+
+/// Samples per pixel at which the path tracer's error in `measure` falls
+/// to `target`, read off its convergence curve: between the first
+/// measured point at or below `target` and the one before it, interpolated
+/// on log-log axes (where Monte Carlo error is a straight line). `None`
+/// without points or where the curve cannot be extended (see
+/// [`Reach::Extrapolated`]).
+pub fn equal_error_spp(
+    curve: &[ConvergencePoint],
+    measure: Measure,
+    target: f64,
+) -> Option<(f64, Reach)> {
+    let mut points: Vec<(f64, f64)> = curve
+        .iter()
+        .filter_map(|p| Some((p.spp as f64, measure.of(p)?)))
+        .filter(|&(spp, e)| spp > 0.0 && e.is_finite() && e > 0.0)
+        .collect();
+    points.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let &(first_spp, first_e) = points.first()?;
+    if !(target.is_finite() && target > 0.0) {
+        return None;
+    }
+    if target >= first_e {
+        return Some((first_spp, Reach::OneSample));
+    }
+    let along = |(sa, ea): (f64, f64), (sb, eb): (f64, f64)| {
+        let (sa, sb, ea, eb) = (sa.ln(), sb.ln(), ea.ln(), eb.ln());
+        (sa + (target.ln() - ea) * (sb - sa) / (eb - ea)).exp()
+    };
+    for w in points.windows(2) {
+        if w[1].1 <= target {
+            return Some((along(w[0], w[1]), Reach::Measured));
+        }
+    }
+    let &(last_spp, last_e) = points.last()?;
+    let spp = match measure {
+        Measure::Lrms => last_spp * (last_e / target).powi(2),
+        Measure::Flip => {
+            let (a, b) = (
+                points[points.len().checked_sub(2)?],
+                points[points.len() - 1],
+            );
+            if b.1 >= a.1 {
+                return None;
+            }
+            along(a, b)
+        }
+    };
+    Some((spp, Reach::Extrapolated))
+}
+
+/// The path tracer's time per frame at the error `target` in `measure`
+/// (its cost per sample times [`equal_error_spp`]), with the samples and
+/// how they were found.
+pub fn equal_error_seconds(
+    curve: &[ConvergencePoint],
+    measure: Measure,
+    target: f64,
+) -> Option<(f64, f64, Reach)> {
+    let (spp, reach) = equal_error_spp(curve, measure, target)?;
     Some((spp * seconds_per_sample(curve)?, spp, reach))
 }
 
@@ -1047,8 +1116,19 @@ mod tests {
             error: ImageError {
                 lrms,
                 bias: 0.0,
+                block_lrms: lrms,
+                block_p99: lrms,
                 pixels: 1,
             },
+            flip: None,
+        }
+    }
+
+    /// A point whose FLIP is `flip` and whose LRMS is 1/√spp.
+    fn flip_point(spp: u32, flip: f64) -> ConvergencePoint {
+        ConvergencePoint {
+            flip: Some(flip),
+            ..point(spp, 1.0 / (spp as f64).sqrt())
         }
     }
 
@@ -1058,23 +1138,26 @@ mod tests {
         let curve: Vec<_> = [1, 2, 8, 32]
             .map(|s| point(s, 1.0 / (s as f64).sqrt()))
             .to_vec();
-        let (spp, reach) = equal_error_spp(&curve, 0.25).unwrap();
+        let (spp, reach) = equal_error_spp(&curve, Measure::Lrms, 0.25).unwrap();
         assert!((spp - 16.0).abs() < 1e-9, "{spp}");
         assert_eq!(reach, Reach::Measured);
         // A measured point is hit exactly.
-        let (spp, _) = equal_error_spp(&curve, 0.5).unwrap();
+        let (spp, _) = equal_error_spp(&curve, Measure::Lrms, 0.5).unwrap();
         assert!((spp - 4.0).abs() < 1e-9, "{spp}");
         // Worse than one sample: one sample.
-        assert_eq!(equal_error_spp(&curve, 3.0), Some((1.0, Reach::OneSample)));
+        assert_eq!(
+            equal_error_spp(&curve, Measure::Lrms, 3.0),
+            Some((1.0, Reach::OneSample))
+        );
         // Below the curve: 1/√spp carried on from the last point.
-        let (spp, reach) = equal_error_spp(&curve, 1.0 / 128.0).unwrap();
+        let (spp, reach) = equal_error_spp(&curve, Measure::Lrms, 1.0 / 128.0).unwrap();
         assert!((spp - 16384.0).abs() < 1e-6, "{spp}");
         assert_eq!(reach, Reach::Extrapolated);
         // The time is the samples at the largest render's cost per sample.
-        let (s, spp, _) = equal_error_seconds(&curve, 0.25).unwrap();
+        let (s, spp, _) = equal_error_seconds(&curve, Measure::Lrms, 0.25).unwrap();
         assert!((s - 0.16).abs() < 1e-9 && (spp - 16.0).abs() < 1e-9);
-        assert_eq!(equal_error_spp(&[], 0.1), None);
-        assert_eq!(equal_error_spp(&curve, f64::NAN), None);
+        assert_eq!(equal_error_spp(&[], Measure::Lrms, 0.1), None);
+        assert_eq!(equal_error_spp(&curve, Measure::Lrms, f64::NAN), None);
     }
 
     #[test]
@@ -1082,9 +1165,37 @@ mod tests {
         // 4 spp dips below 0.3, 8 spp rises above it again: the path tracer
         // first reaches 0.3 between 2 and 4 spp.
         let curve = [point(1, 0.8), point(2, 0.5), point(4, 0.25), point(8, 0.35)];
-        let (spp, reach) = equal_error_spp(&curve, 0.3).unwrap();
+        let (spp, reach) = equal_error_spp(&curve, Measure::Lrms, 0.3).unwrap();
         assert!(spp > 2.0 && spp < 4.0, "{spp}");
         assert_eq!(reach, Reach::Measured);
+    }
+
+    #[test]
+    fn equal_flip_is_read_off_the_flip_curve() {
+        // FLIP 0.4, 0.2, 0.1 at 1, 4, 16 spp (halving per 4x): 0.141 lies
+        // at 8 spp on log-log axes, where LRMS would put 50 spp.
+        let curve = [flip_point(1, 0.4), flip_point(4, 0.2), flip_point(16, 0.1)];
+        let (spp, reach) = equal_error_spp(&curve, Measure::Flip, 0.2 / 2f64.sqrt()).unwrap();
+        assert!((spp - 8.0).abs() < 1e-9, "{spp}");
+        assert_eq!(reach, Reach::Measured);
+        assert_eq!(
+            equal_error_spp(&curve, Measure::Flip, 0.5),
+            Some((1.0, Reach::OneSample))
+        );
+        // Below the curve: along its last slope, FLIP halving per 4x, so
+        // 0.025 is two more factors of 4 past 16 spp.
+        let (spp, reach) = equal_error_spp(&curve, Measure::Flip, 0.025).unwrap();
+        assert!((spp - 256.0).abs() < 1e-6, "{spp}");
+        assert_eq!(reach, Reach::Extrapolated);
+        // A curve that has stopped falling cannot be extended.
+        let flat = [flip_point(1, 0.4), flip_point(4, 0.2), flip_point(16, 0.2)];
+        assert_eq!(equal_error_spp(&flat, Measure::Flip, 0.1), None);
+        assert_eq!(equal_error_spp(&curve[..1], Measure::Flip, 0.1), None);
+        // Without FLIP on the curve there is no equal FLIP.
+        let lrms_only: Vec<_> = [1, 4, 16].map(|s| point(s, 0.5)).to_vec();
+        assert_eq!(equal_error_spp(&lrms_only, Measure::Flip, 0.1), None);
+        let (s, spp, _) = equal_error_seconds(&curve, Measure::Flip, 0.1).unwrap();
+        assert!((s - 0.16).abs() < 1e-9 && (spp - 16.0).abs() < 1e-9);
     }
 
     #[test]

@@ -575,6 +575,8 @@ fn markdown(r: &ViewsResults) -> Result<String> {
         "LRMS",
         "bias",
         "LRMS, emitters excluded",
+        "block LRMS",
+        "block p99",
         "FLIP",
         "paper LRMS",
     ]);
@@ -588,6 +590,8 @@ fn markdown(r: &ViewsResults) -> Result<String> {
             "—".into(),
             "—".into(),
             "—".into(),
+            "0".into(),
+            "0".into(),
             "0".into(),
             "0".into(),
             "0".into(),
@@ -622,6 +626,8 @@ fn markdown(r: &ViewsResults) -> Result<String> {
                 sig(fr.error.lrms, 3),
                 format!("{:+.4}", fr.error.bias),
                 cell(fr.without_emitters.map(|e| e.lrms), 3),
+                sig(fr.error.block_lrms, 3),
+                sig(fr.error.block_p99, 3),
                 cell(fr.flip, 3),
                 // The paper's figures are for pinterp's default fills
                 // (foreground and background).
@@ -647,6 +653,8 @@ fn markdown(r: &ViewsResults) -> Result<String> {
             sig(d.error.lrms, 3),
             format!("{:+.4}", d.error.bias),
             cell(d.without_emitters.map(|e| e.lrms), 3),
+            sig(d.error.block_lrms, 3),
+            sig(d.error.block_p99, 3),
             cell(d.flip, 3),
             "—".into(),
         ])?;
@@ -688,6 +696,8 @@ fn qualities_csv(r: &ViewsResults) -> Result<Table> {
         "lrms",
         "bias",
         "lrms_without_emitters",
+        "block_lrms",
+        "block_p99",
         "flip",
         "reference_s",
     ]);
@@ -743,6 +753,8 @@ fn qualities_csv(r: &ViewsResults) -> Result<Table> {
                 fr.error.bias.to_string(),
                 fr.without_emitters
                     .map_or(String::new(), |e| e.lrms.to_string()),
+                fr.error.block_lrms.to_string(),
+                fr.error.block_p99.to_string(),
                 fr.flip.map_or(String::new(), |x| x.to_string()),
                 q.reference.seconds.map_or(String::new(), |x| x.to_string()),
             ])?;

@@ -1,16 +1,22 @@
 //! A walk's frames measured against path-traced references (`rangewalk
 //! walk --check-every`): every n-th frame and the last are path-traced
-//! beside the synthesis, their error goes in the walk's summary and both
-//! are shown, synthesized above reference, in `contact.png`.
+//! beside the synthesis, their error goes in the walk's summary and
+//! `contact.png` shows them, one column per checked frame: the synthesized
+//! frame, its reference and FLIP's error map of the two.
+//!
+//! The error is LRMS and bias, which the paper reports, the 8×8-block LRMS
+//! and its 99th percentile, and FLIP: a silhouette of a few hundred wrong
+//! pixels barely moves LRMS, and a viewer sees it first.
 
 use std::path::Path;
 
 use anyhow::{ensure, Context, Result};
 use glam::Vec3;
 
+use super::flip::Flip;
 use super::metrics;
 use super::reference::path_trace_image;
-use super::summary::write_sheet;
+use super::summary::write_sheet_srgb8;
 use crate::camera::Camera;
 use crate::image::{self, RangeImage};
 use crate::synth::walk::{FrameCheck, FrameChecker};
@@ -22,13 +28,22 @@ pub struct ReferenceChecks {
     every: usize,
     spp: u32,
     seed: u64,
+    /// `None`: FLIP left out.
+    flip: Option<Flip>,
     size: (u32, u32),
-    /// Each checked frame's radiance and its reference's, for the sheet.
-    sheet: Vec<(Vec<Vec3>, Vec<Vec3>)>,
+    /// Each checked frame's radiance, its reference's and FLIP's error map
+    /// (8-bit sRGB), for the sheet.
+    sheet: Vec<Checked>,
+}
+
+struct Checked {
+    frame: Vec<Vec3>,
+    reference: Vec<Vec3>,
+    flip_map: Option<Vec<u8>>,
 }
 
 impl ReferenceChecks {
-    pub fn new(every: usize, spp: u32, seed: u64) -> Result<Self> {
+    pub fn new(every: usize, spp: u32, seed: u64, flip: Option<Flip>) -> Result<Self> {
         ensure!(
             every > 0,
             "--check-every 0: give a frame interval of at least 1"
@@ -38,6 +53,7 @@ impl ReferenceChecks {
             every,
             spp,
             seed,
+            flip,
             size: (0, 0),
             sheet: Vec::new(),
         })
@@ -65,27 +81,59 @@ impl FrameChecker for ReferenceChecks {
         image::write_exr(dir.join(format!("reference-{i:04}.exr")), &reference)?;
         let e = metrics::compare(frame, &reference, None)
             .with_context(|| format!("frame {i} against its reference"))?;
+        let flip = self
+            .flip
+            .as_ref()
+            .map(|f| {
+                let pairs = [(reference.radiance.as_slice(), frame.radiance.as_slice())];
+                let mut maps = f.hdr_maps(frame.width, frame.height, &pairs)?;
+                anyhow::Ok(maps.remove(0))
+            })
+            .transpose()
+            .with_context(|| format!("FLIP of frame {i} against its reference"))?;
         self.size = (frame.width, frame.height);
-        self.sheet
-            .push((frame.radiance.clone(), reference.radiance));
-        Ok(FrameCheck {
+        let check = FrameCheck {
             frame: i,
             time: t,
             lrms: e.lrms,
             bias: e.bias,
+            block_lrms: e.block_lrms,
+            block_p99: e.block_p99,
+            flip: flip.as_ref().map(|m| m.mean),
             reference_spp: self.spp,
             reference_seconds: seconds,
-        })
+        };
+        self.sheet.push(Checked {
+            frame: frame.radiance.clone(),
+            reference: reference.radiance,
+            flip_map: flip.map(|m| m.rgb),
+        });
+        Ok(check)
     }
 
+    /// `contact.png`: synthesized frames in the top row, their references
+    /// below at the same exposure, and FLIP's error maps in a third row
+    /// unless FLIP was left out.
     fn finish(&mut self, dir: &Path, exposure: f32) -> Result<()> {
         if self.sheet.is_empty() {
             return Ok(());
         }
-        let rows: Vec<Vec<&[Vec3]>> = vec![
-            self.sheet.iter().map(|(s, _)| s.as_slice()).collect(),
-            self.sheet.iter().map(|(_, r)| r.as_slice()).collect(),
+        let tonemapped = |img: &[Vec3]| image::tonemap_srgb8(img, exposure);
+        let mut rows = vec![
+            self.sheet.iter().map(|c| tonemapped(&c.frame)).collect(),
+            self.sheet
+                .iter()
+                .map(|c| tonemapped(&c.reference))
+                .collect(),
         ];
-        write_sheet(dir.join("contact.png"), self.size, &rows, exposure)
+        let maps: Vec<Vec<u8>> = self
+            .sheet
+            .iter_mut()
+            .filter_map(|c| c.flip_map.take())
+            .collect();
+        if !maps.is_empty() {
+            rows.push(maps);
+        }
+        write_sheet_srgb8(dir.join("contact.png"), self.size, &rows)
     }
 }

@@ -23,8 +23,8 @@ use super::report::{sig, Table};
 use super::staging::Staging;
 use super::summary::{convergence_series, convergence_table};
 use super::synthesis::{
-    self, break_even, cell, equal_error_seconds, speedup, CommonArgs, Measured, ModeRun, Reach,
-    Sequence, SequenceArgs, SequenceQuality, Shot,
+    self, break_even, cell, equal_error_seconds, speedup, CommonArgs, Measure, Measured, ModeRun,
+    Reach, Sequence, SequenceArgs, SequenceQuality, Shot,
 };
 use crate::plan::Plan;
 use crate::synth::{Options, TimeInterp};
@@ -172,10 +172,14 @@ pub fn run(args: &WalkthroughArgs) -> Result<WalkResults> {
     // pass the best mean error of any quality and mode.
     let all_modes = || runs.iter().flat_map(|q| q.modes.iter());
     let target = Target {
+        max_spp: (c.reference_spp / 4).max(1),
         seconds: all_modes().map(ModeRun::per_frame_s).fold(0.0, f64::max),
         lrms: all_modes()
             .map(ModeRun::mean_lrms)
             .fold(f64::INFINITY, f64::min),
+        flip: all_modes()
+            .filter_map(|m| Measure::Flip.mean(m))
+            .reduce(f64::min),
     };
     let shot = &shots[preview_frame];
     let convergence = experiment::convergence(
@@ -184,8 +188,8 @@ pub fn run(args: &WalkthroughArgs) -> Result<WalkResults> {
         &shot.camera,
         shot.time,
         &references[preview_frame].radiance,
-        (c.reference_spp / 4).max(1),
         target,
+        setup.flip.as_ref(),
     )?;
 
     let mut results = WalkResults {
@@ -238,7 +242,7 @@ pub fn used_views(plan: &Plan, positions: &[Vec3], bases: usize) -> Plan {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Amortized {
     /// The path tracer's samples per pixel and seconds per frame at the
-    /// mode's mean LRMS.
+    /// mode's mean error (LRMS or FLIP).
     pub path_spp: f64,
     pub reach: Reach,
     pub path_frame_s: f64,
@@ -263,15 +267,17 @@ pub fn reading_s(q: &SequenceQuality, m: &ModeRun) -> f64 {
     m.load_s() * unread.max(1.0)
 }
 
-/// The framework's cost against the path tracer's for `m`, amortized over
-/// `n` frames; `None` when a time is unknown.
+/// The framework's cost against the path tracer's at `m`'s mean error in
+/// `measure`, amortized over `n` frames; `None` when a time or the error
+/// is unknown.
 pub fn amortized(
     q: &SequenceQuality,
     m: &ModeRun,
     curve: &[ConvergencePoint],
     n: u64,
+    measure: Measure,
 ) -> Option<Amortized> {
-    let (path_frame_s, path_spp, reach) = equal_error_seconds(curve, m.mean_lrms())?;
+    let (path_frame_s, path_spp, reach) = equal_error_seconds(curve, measure, measure.mean(m)?)?;
     let bake_s = q.full_bake_s()?;
     let read_s = reading_s(q, m);
     let synth_frame_s = m.synth_per_frame_s();
@@ -292,11 +298,11 @@ fn paper(q: f32) -> Option<(f64, f64)> {
     super::report::for_quality(&PAPER, q, |p| p.0).map(|p| (p.1, p.2))
 }
 
-/// Writes table.md, qualities.csv, frames.csv, convergence.csv, plots and
-/// strips.
+/// Writes table.md, qualities.csv, frames.csv, convergence.csv, plots
+/// (`flip_vs_time.png` only where FLIP was measured) and strips.
 pub fn write(dir: &Path, r: &WalkResults) -> Result<()> {
     convergence_table(&r.convergence)?.write_csv(dir.join("convergence.csv"))?;
-    error_vs_time_plot(dir, r)?;
+    error_vs_time_plots(dir, r)?;
     synthesis::write_sequence(
         dir,
         &markdown(r)?,
@@ -313,6 +319,20 @@ fn reach_note(a: &Amortized) -> &'static str {
         Reach::OneSample => " (≤ 1)",
         Reach::Extrapolated => " (extrapolated)",
     }
+}
+
+/// The path tracer's samples and time over the walk's `n` frames, the
+/// break-even and the speed-up of one comparison, or dashes without one.
+fn amortized_cells(a: Option<Amortized>, n: usize) -> [String; 4] {
+    let Some(a) = a else {
+        return ["—"; 4].map(String::from);
+    };
+    [
+        format!("{}{}", sig(a.path_spp, 3), reach_note(&a)),
+        sig(a.path_frame_s * n as f64, 3),
+        a.break_even.map_or("never".into(), |b| b.to_string()),
+        format!("{:.2}x", a.speedup),
+    ]
 }
 
 fn markdown(r: &WalkResults) -> Result<String> {
@@ -382,43 +402,32 @@ fn markdown(r: &WalkResults) -> Result<String> {
     );
 
     let _ = writeln!(md, "\n## Walk-through construction, {n} frames\n");
-    let m_frames = a.amortize_frames;
     let mut t = Table::new([
-        "method".to_string(),
-        "synthesis (s)".into(),
-        "loading (s)".into(),
-        "per frame (s)".into(),
-        "mean LRMS".into(),
-        "max LRMS".into(),
-        "mean bias".into(),
-        "mean LRMS, emitters excluded".into(),
-        "mean FLIP".into(),
-        "path tracer at equal error: spp".into(),
-        "path tracer, all frames (s)".into(),
-        "break-even (frames)".into(),
-        format!("speed-up over {m_frames} frames"),
-        "paper (min)".into(),
+        "method",
+        "synthesis (s)",
+        "loading (s)",
+        "per frame (s)",
+        "mean LRMS",
+        "max LRMS",
+        "mean bias",
+        "mean LRMS, emitters excluded",
+        "mean block LRMS",
+        "mean block p99",
+        "mean FLIP",
+        "paper (min)",
     ]);
     let ref_s: Option<f64> = r.references.iter().map(|x| x.seconds).sum();
-    t.push([
+    let mut row = vec![
         format!("fully rendered: path tracer at {} spp", c.reference_spp),
         cell(ref_s, 3),
         "—".into(),
         cell(ref_s.map(|s| s / n as f64), 3),
-        "0".into(),
-        "0".into(),
-        "0".into(),
-        "0".into(),
-        "0".into(),
-        c.reference_spp.to_string(),
-        cell(ref_s, 3),
-        "—".into(),
-        "—".into(),
-        sig(PAPER_FULLY_RENDERED_MIN, 6),
-    ])?;
+    ];
+    row.extend(["0"; 7].map(String::from));
+    row.push(sig(PAPER_FULLY_RENDERED_MIN, 6));
+    t.push(row)?;
     for q in &r.qualities {
         for m in &q.modes {
-            let am = amortized(q, m, &r.convergence, m_frames);
             t.push([
                 format!("q = {}, {}", q.quality, <&str>::from(m.mode)),
                 sig(m.synth_s(), 3),
@@ -428,14 +437,9 @@ fn markdown(r: &WalkResults) -> Result<String> {
                 sig(m.max_lrms(), 3),
                 format!("{:+.4}", m.mean_bias()),
                 cell(m.mean_lrms_without_emitters(), 3),
+                sig(m.mean_block_lrms(), 3),
+                sig(m.mean_block_p99(), 3),
                 cell(synthesis::mean_flip(&m.frames), 3),
-                am.map_or("—".into(), |x| {
-                    format!("{}{}", sig(x.path_spp, 3), reach_note(&x))
-                }),
-                am.map_or("—".into(), |x| sig(x.path_frame_s * n as f64, 3)),
-                am.and_then(|x| x.break_even)
-                    .map_or("never".into(), |b| b.to_string()),
-                am.map_or("—".into(), |x| format!("{:.2}x", x.speedup)),
                 paper(q.quality)
                     .filter(|_| m.mode == TimeInterp::Linear)
                     .map_or("—".into(), |p| sig(p.1, 3)),
@@ -443,19 +447,52 @@ fn markdown(r: &WalkResults) -> Result<String> {
         }
     }
     md.push_str(&t.to_markdown());
-    let f = r.preview_frame;
     let _ = writeln!(
         md,
-        "\nPer frame: synthesis and loading. Path tracer at equal error: the samples per pixel at which \
-         the path tracer's LRMS on frame {f} (t = {} s) equals the mode's mean LRMS, read off its \
-         convergence curve (below) on log-log axes, times its measured cost per sample ({} s per spp \
-         per frame); \"≤ 1\": one sample is already better; \"extrapolated\": below the curve's last \
-         point, extended as 1/√spp. Break-even: the fewest frames for which the whole bake, reading \
-         the bases and synthesis cost no more than path tracing every frame to the same error; \
-         speed-up: path tracing over the framework for {m_frames} frames, bake included. Reading \
-         counts once for the walk (scaled to every planned image), not per frame: a walk reads each \
-         base it uses once while they fit in memory, however many frames it has. The paper's times \
-         are for its {PAPER_FRAMES} frames, after bakes of 1,213.53 / 2,894.22 / 7,746.76 min.",
+        "\nPer frame: synthesis and loading. The paper's times are for its {PAPER_FRAMES} frames, \
+         after bakes of 1,213.53 / 2,894.22 / 7,746.76 min."
+    );
+
+    let m_frames = a.amortize_frames;
+    let f = r.preview_frame;
+    md.push_str("\n## Against the path tracer at equal error\n\n");
+    let mut headers = vec!["method".to_string()];
+    for what in ["LRMS", "FLIP"] {
+        headers.extend([
+            format!("equal {what}: path tracer spp"),
+            format!("equal {what}: path tracer, all frames (s)"),
+            format!("equal {what}: break-even (frames)"),
+            format!("equal {what}: speed-up over {m_frames} frames"),
+        ]);
+    }
+    let mut t = Table::new(headers);
+    for q in &r.qualities {
+        for m in &q.modes {
+            let mut row = vec![format!("q = {}, {}", q.quality, <&str>::from(m.mode))];
+            for measure in [Measure::Lrms, Measure::Flip] {
+                row.extend(amortized_cells(
+                    amortized(q, m, &r.convergence, m_frames, measure),
+                    n,
+                ));
+            }
+            t.push(row)?;
+        }
+    }
+    md.push_str(&t.to_markdown());
+    let _ = writeln!(
+        md,
+        "\nPath tracer at equal error: the samples per pixel at which the path tracer's error on \
+         frame {f} (t = {} s) equals the mode's mean error, LRMS or FLIP, read off its convergence \
+         curve (below) on log-log axes, times its measured cost per sample ({} s per spp per frame); \
+         \"≤ 1\": one sample is already better; \"extrapolated\": below the curve's last point, LRMS \
+         extended as 1/√spp, FLIP along the slope of the curve's last two points; \"—\": not \
+         measured (FLIP left out) or a curve that no longer falls. Break-even: the fewest frames for \
+         which the whole bake, reading the bases and synthesis cost no more than path tracing every \
+         frame to the same error; speed-up: path tracing over the framework for {m_frames} frames, \
+         bake included. Reading counts once for the walk (scaled to every planned image), not per \
+         frame: a walk reads each base it uses once while they fit in memory, however many frames it \
+         has. The two measures can disagree widely: LRMS weighs every pixel alike, FLIP weighs what a \
+         viewer notices.",
         r.times[f],
         seconds_per_sample(&r.convergence).map_or("—".into(), |s| sig(s, 3)),
     );
@@ -492,19 +529,25 @@ fn qualities_csv(r: &WalkResults) -> Result<Table> {
         "mean_lrms",
         "max_lrms",
         "mean_lrms_without_emitters",
+        "mean_block_lrms",
+        "mean_block_p99",
         "mean_flip",
         "path_spp",
         "path_reach",
         "path_frame_s",
         "break_even_frames",
         "speedup",
+        "path_spp_flip",
+        "path_reach_flip",
+        "path_frame_s_flip",
+        "break_even_frames_flip",
+        "speedup_flip",
     ]);
     let opt = |x: Option<f64>| x.map_or(String::new(), |x| x.to_string());
     for q in &r.qualities {
         let timing = q.bake.timing.as_ref();
         for m in &q.modes {
-            let am = amortized(q, m, &r.convergence, r.args.amortize_frames);
-            t.push([
+            let mut row = vec![
                 q.quality.to_string(),
                 <&str>::from(m.mode).to_string(),
                 q.plan.views.len().to_string(),
@@ -521,52 +564,73 @@ fn qualities_csv(r: &WalkResults) -> Result<Table> {
                 m.mean_lrms().to_string(),
                 m.max_lrms().to_string(),
                 opt(m.mean_lrms_without_emitters()),
+                m.mean_block_lrms().to_string(),
+                m.mean_block_p99().to_string(),
                 opt(synthesis::mean_flip(&m.frames)),
-                opt(am.map(|a| a.path_spp)),
-                am.map_or(String::new(), |a| format!("{:?}", a.reach).to_lowercase()),
-                opt(am.map(|a| a.path_frame_s)),
-                am.and_then(|a| a.break_even)
-                    .map_or(String::new(), |b| b.to_string()),
-                opt(am.map(|a| a.speedup)),
-            ])?;
+            ];
+            for measure in [Measure::Lrms, Measure::Flip] {
+                let am = amortized(q, m, &r.convergence, r.args.amortize_frames, measure);
+                row.extend([
+                    opt(am.map(|a| a.path_spp)),
+                    am.map_or(String::new(), |a| format!("{:?}", a.reach).to_lowercase()),
+                    opt(am.map(|a| a.path_frame_s)),
+                    am.and_then(|a| a.break_even)
+                        .map_or(String::new(), |b| b.to_string()),
+                    opt(am.map(|a| a.speedup)),
+                ]);
+            }
+            t.push(row)?;
         }
     }
     Ok(t)
 }
 
-/// Mean LRMS against seconds per frame: the path tracer's convergence
-/// curve, and each quality and mode with its whole bake and reading
-/// amortized over the walk's frames and over `--amortize-frames`.
-fn error_vs_time_plot(dir: &Path, r: &WalkResults) -> Result<()> {
-    let mut series = vec![convergence_series(&r.convergence)];
+/// Mean error against seconds per frame, in LRMS (`error_vs_time.png`)
+/// and, where measured, FLIP (`flip_vs_time.png`): the path tracer's
+/// convergence curve, and each quality and mode with its whole bake and
+/// reading amortized over the walk's frames and over `--amortize-frames`.
+/// Where a mode's point lies below the curve at its time, it beats the
+/// path tracer there.
+fn error_vs_time_plots(dir: &Path, r: &WalkResults) -> Result<()> {
     let n = r.times.len() as u64;
-    for frames in [n, r.args.amortize_frames] {
-        for &mode in &r.args.sequence.time_interp {
-            series.push(Series {
-                label: format!("{}, bake over {frames} frames", <&str>::from(mode)),
-                points: r
-                    .qualities
-                    .iter()
-                    .filter_map(|q| {
-                        let m = q.modes.iter().find(|m| m.mode == mode)?;
-                        let fixed = q.full_bake_s()? + reading_s(q, m);
-                        let per_frame = fixed / frames as f64 + m.synth_per_frame_s();
-                        Some((per_frame, m.mean_lrms()))
-                    })
-                    .collect(),
-            });
+    for (measure, file, label) in [
+        (Measure::Lrms, "error_vs_time.png", "mean LRMS"),
+        (Measure::Flip, "flip_vs_time.png", "mean FLIP"),
+    ] {
+        let curve = convergence_series(&r.convergence, measure);
+        if curve.points.is_empty() {
+            continue;
         }
+        let mut series = vec![curve];
+        for frames in [n, r.args.amortize_frames] {
+            for &mode in &r.args.sequence.time_interp {
+                series.push(Series {
+                    label: format!("{}, bake over {frames} frames", <&str>::from(mode)),
+                    points: r
+                        .qualities
+                        .iter()
+                        .filter_map(|q| {
+                            let m = q.modes.iter().find(|m| m.mode == mode)?;
+                            let fixed = q.full_bake_s()? + reading_s(q, m);
+                            let per_frame = fixed / frames as f64 + m.synth_per_frame_s();
+                            Some((per_frame, measure.mean(m)?))
+                        })
+                        .collect(),
+                });
+            }
+        }
+        plot::write_png(
+            dir.join(file),
+            &Plot {
+                title: "Walk-through: error against time per frame",
+                x_label: "seconds per frame (whole bake and reading amortized)",
+                y_label: label,
+                scale: Scale::LogLog,
+                series: &series,
+            },
+        )?;
     }
-    plot::write_png(
-        dir.join("error_vs_time.png"),
-        &Plot {
-            title: "Walk-through: error against time per frame",
-            x_label: "seconds per frame (whole bake and reading amortized)",
-            y_label: "mean LRMS",
-            scale: Scale::LogLog,
-            series: &series,
-        },
-    )
+    Ok(())
 }
 
 #[cfg(test)]
@@ -582,13 +646,16 @@ mod tests {
         ImageError {
             lrms,
             bias: 0.0,
+            block_lrms: 0.8 * lrms,
+            block_p99: 2.0 * lrms,
             pixels: 4,
         }
     }
 
     /// One quality whose numbers are easy to follow by hand: a bake of
     /// 2 s planning + 10 s radiosity + 4 images at 10 s, frames of 1 s at
-    /// LRMS 0.25, a path tracer at 0.1 s per spp with LRMS 1/√spp.
+    /// LRMS 0.25 and FLIP 0.05, a path tracer at 0.1 s per spp with LRMS
+    /// 1/√spp and FLIP 0.4 halving at every 4x.
     fn results() -> WalkResults {
         let view = |x: f32| PlannedView {
             position: Vec3::new(x, 0.0, 0.0),
@@ -604,7 +671,7 @@ mod tests {
             filled: 0,
             error: error(0.25),
             without_emitters: None,
-            flip: None,
+            flip: Some(0.05),
         };
         let quality = SequenceQuality {
             quality: 0.3,
@@ -673,6 +740,7 @@ mod tests {
                     spp,
                     seconds: 0.1 * spp as f64,
                     error: error(1.0 / (spp as f64).sqrt()),
+                    flip: Some(0.4 / (spp as f64).sqrt()),
                 })
                 .to_vec(),
             qualities: vec![quality],
@@ -689,19 +757,56 @@ mod tests {
         // LRMS 0.25 is the path tracer's at 16 spp: 1.6 s a frame against
         // 0.5 s of synthesis, after 52 s of bake and 1 s of reading, so
         // 53 / 1.1 = 48.2: 49 frames; over 300 frames 480 s / (53 + 150) s.
-        let a = amortized(q, &q.modes[0], &r.convergence, 300).unwrap();
+        let a = amortized(q, &q.modes[0], &r.convergence, 300, Measure::Lrms).unwrap();
         assert!((a.path_spp - 16.0).abs() < 1e-9, "{a:?}");
         assert!((a.path_frame_s - 1.6).abs() < 1e-9, "{a:?}");
         assert!((a.read_s - 1.0).abs() < 1e-9, "{a:?}");
         assert_eq!(a.break_even, Some(49));
+        // FLIP 0.05 is the path tracer's at 64 spp: 6.4 s a frame, so
+        // 53 / 5.9 = 8.98: 9 frames; over 300 frames 1920 s / 203 s.
+        let f = amortized(q, &q.modes[0], &r.convergence, 300, Measure::Flip).unwrap();
+        assert!((f.path_spp - 64.0).abs() < 1e-9, "{f:?}");
+        assert!((f.path_frame_s - 6.4).abs() < 1e-9, "{f:?}");
+        assert_eq!(f.break_even, Some(9));
         let md = markdown(&r).unwrap();
-        let row = md
+        let rows: Vec<&str> = md
             .lines()
-            .find(|l| l.starts_with("| q = 0.3, linear |"))
-            .unwrap_or_else(|| panic!("no row for q = 0.3 in\n{md}"));
-        let cells: Vec<&str> = row.split(" | ").collect();
-        assert_eq!(cells.len(), 14, "{row}");
-        assert!(row.contains("| 16.0 | 3.20 | 49 | 2.36x | 90.0 |"), "{row}");
+            .filter(|l| l.starts_with("| q = 0.3, linear |"))
+            .collect();
+        assert_eq!(rows.len(), 2, "{md}");
+        // Construction: times, errors (block LRMS and p99 beside LRMS and
+        // FLIP) and the paper's minutes.
+        assert_eq!(
+            rows[0],
+            "| q = 0.3, linear | 1.00 | 1.00 | 1.00 | 0.250 | 0.250 | +0.0000 | — | 0.200 | 0.500 \
+             | 0.0500 | 90.0 |"
+        );
+        // At equal LRMS, then at equal FLIP.
+        assert_eq!(
+            rows[1],
+            "| q = 0.3, linear | 16.0 | 3.20 | 49 | 2.36x | 64.0 | 12.8 | 9 | 9.46x |"
+        );
+        assert!(md.contains("equal FLIP: break-even (frames)"), "{md}");
+        // Without FLIP the comparison at equal FLIP is left empty.
+        let mut no_flip = r.clone();
+        for m in &mut no_flip.qualities[0].modes {
+            for fr in &mut m.frames {
+                fr.flip = None;
+            }
+        }
+        for p in &mut no_flip.convergence {
+            p.flip = None;
+        }
+        let md = markdown(&no_flip).unwrap();
+        assert!(
+            md.contains("| q = 0.3, linear | 16.0 | 3.20 | 49 | 2.36x | — | — | — | — |"),
+            "{md}"
+        );
+        let csv = qualities_csv(&r).unwrap();
+        let col = |name: &str| csv.headers.iter().position(|h| h == name).unwrap();
+        assert_eq!(csv.rows[0][col("break_even_frames")], "49");
+        assert_eq!(csv.rows[0][col("break_even_frames_flip")], "9");
+        assert_eq!(csv.rows[0][col("mean_block_p99")], "0.5");
         // Half of the plan baked: its reading counts for all of it.
         let mut half = q.clone();
         half.baked_images = 2;

@@ -56,6 +56,13 @@ pub struct FrameCheck {
     /// Relative luminance RMS error and bias of the synthesized frame.
     pub lrms: f64,
     pub bias: f64,
+    /// The luminance error of its 8×8 blocks: their RMS, which per-pixel
+    /// noise leaves alone, and their 99th percentile, which a local
+    /// artifact raises while the means hide it.
+    pub block_lrms: f64,
+    pub block_p99: f64,
+    /// Mean HDR-FLIP, what a viewer would notice; `None` when left out.
+    pub flip: Option<f64>,
     pub reference_spp: u32,
     pub reference_seconds: f64,
 }
@@ -81,7 +88,7 @@ pub struct WalkSummary {
     pub peak_resident_bytes: Option<u64>,
     pub warnings: Vec<String>,
     /// Frames checked against path-traced references (`contact.png` shows
-    /// them, synthesized above reference).
+    /// them: synthesized, path-traced and, with FLIP, FLIP's error map).
     pub checks: Vec<FrameCheck>,
     pub out: PathBuf,
 }

@@ -761,6 +761,7 @@ impl<'a> Synthesizer<'a> {
                 &now,
                 &then,
                 records.as_deref(),
+                k as usize,
                 opts,
                 &mut image,
             )?;

@@ -223,7 +223,9 @@ fn mean_time(times: &[f32], tau: f32) -> (usize, usize, f32) {
 /// Re-shades `image` (made from `pixels`); `engine` holds the scene posed
 /// at `t`, `now` is [`direct_at`] the frame's time and `then[i]` at base
 /// time `times[i]`; `records`, where the bake has them and they change,
-/// correct the diffuse indirect light too ([`super::indirect`]). Returns
+/// correct the diffuse indirect light too ([`super::indirect`]), once for
+/// each `block` × `block` subpixels of one frame pixel that show one
+/// triangle. Returns
 /// the number of mirror pixels whose reflection no base showed (they keep
 /// their projected radiance).
 #[allow(clippy::too_many_arguments)]
@@ -238,6 +240,7 @@ pub fn apply(
     now: &[Vec3],
     then: &[Vec<Vec3>],
     records: Option<&Records>,
+    block: usize,
     opts: &Options,
     image: &mut RangeImage,
 ) -> Result<usize> {
@@ -250,63 +253,99 @@ pub fn apply(
         .iter()
         .map(|b| motions_back(scene, t, b.time))
         .collect();
+    // A frame pixel's k × k subpixels of one triangle and one blend of
+    // base times share their indirect correction: records vary over many
+    // pixels, and looking them up for every subpixel cost more than all
+    // the rest of re-shading.
+    let k = block.max(1);
     let misses = image
         .radiance
-        .par_chunks_mut(w)
-        .zip(pixels.par_chunks(w))
+        .par_chunks_mut(w * k)
+        .zip(pixels.par_chunks(w * k))
         .enumerate()
-        .map(|(y, (row, acc))| -> Result<usize> {
+        .map(|(band, (rows, accs))| -> Result<usize> {
             let mut misses = 0;
-            for (x, a) in acc.iter().enumerate() {
-                let Some(mut sp) = surface_point(a, cam, None) else {
-                    continue;
-                };
-                if matches!(scene.material_of(sp.object).bsdf, Bsdf::Mirror { .. }) {
-                    sp = on_own_ray(engine, &camera, x, y, sp);
-                }
-                if let Some((reflectance, reflected)) = shading.mirror(&sp) {
-                    let seen = match reflected {
-                        Reflected::Sky(l) => Some(l),
-                        Reflected::Surface { hit, position } => {
-                            let seen =
-                                gather(bases, weights, &back, hit.object, position, opts.tolerance);
-                            // A light small in the bases has few pixels
-                            // that do not mix it with its dark surroundings;
-                            // a surface is never darker than its emission,
-                            // which stands in (as for lights seen directly).
-                            let e = shading.emission(&SurfacePoint {
-                                object: hit.object,
-                                primitive: hit.primitive,
-                                position,
-                                wo: (sp.position - position).normalize_or_zero(),
-                            });
-                            match seen {
-                                Some(l) if luminance(l) >= luminance(e) => Some(l),
-                                _ if e != Vec3::ZERO => Some(e),
-                                other => other,
-                            }
-                        }
+            let mut shared: Vec<Option<(u32, u32, f32, Vec3)>> = vec![None; w.div_ceil(k)];
+            for (dy, (row, acc)) in rows.chunks_mut(w).zip(accs.chunks(w)).enumerate() {
+                let y = band * k + dy;
+                for (x, a) in acc.iter().enumerate() {
+                    let Some(mut sp) = surface_point(a, cam, None) else {
+                        continue;
                     };
-                    match seen {
-                        Some(l) => row[x] = shading.emission(&sp) + reflectance * l,
-                        None => misses += 1,
+                    if matches!(scene.material_of(sp.object).bsdf, Bsdf::Mirror { .. }) {
+                        sp = on_own_ray(engine, &camera, x, y, sp);
                     }
-                    continue;
+                    if let Some((reflectance, reflected)) = shading.mirror(&sp) {
+                        let seen = match reflected {
+                            Reflected::Sky(l) => Some(l),
+                            Reflected::Surface { hit, position } => {
+                                let seen = gather(
+                                    bases,
+                                    weights,
+                                    &back,
+                                    hit.object,
+                                    position,
+                                    opts.tolerance,
+                                );
+                                // A light small in the bases has few pixels
+                                // that do not mix it with its dark surroundings;
+                                // a surface is never darker than its emission,
+                                // which stands in (as for lights seen directly).
+                                let e = shading.emission(&SurfacePoint {
+                                    object: hit.object,
+                                    primitive: hit.primitive,
+                                    position,
+                                    wo: (sp.position - position).normalize_or_zero(),
+                                });
+                                match seen {
+                                    Some(l) if luminance(l) >= luminance(e) => Some(l),
+                                    _ if e != Vec3::ZERO => Some(e),
+                                    other => other,
+                                }
+                            }
+                        };
+                        match seen {
+                            Some(l) => row[x] = shading.emission(&sp) + reflectance * l,
+                            None => misses += 1,
+                        }
+                        continue;
+                    }
+                    let k_px = y * w + x;
+                    let tau = a.alpha / a.w;
+                    let (i, j, f) = mean_time(times, tau);
+                    let before = then[i][k_px].lerp(then[j][k_px], f);
+                    let mut l = a.radiance / a.w + now[k_px] - before;
+                    if let Some(r) = records {
+                        let slot = &mut shared[x / k];
+                        let correction = match *slot {
+                            Some((o, p, t0, c))
+                                if o == sp.object
+                                    && p == sp.primitive
+                                    && (t0 - tau).abs() <= 1e-3 =>
+                            {
+                                c
+                            }
+                            _ => {
+                                let c = match shading.diffuse_query(&sp) {
+                                    Some(q) => {
+                                        let ei = r.irradiance(&q, times[i])?;
+                                        let before = if j == i {
+                                            ei
+                                        } else {
+                                            ei.lerp(r.irradiance(&q, times[j])?, f)
+                                        };
+                                        q.albedo * FRAC_1_PI * (r.irradiance(&q, t)? - before)
+                                    }
+                                    None => Vec3::ZERO,
+                                };
+                                *slot = Some((sp.object, sp.primitive, tau, c));
+                                c
+                            }
+                        };
+                        l += correction;
+                    }
+                    row[x] = l.max(Vec3::ZERO);
                 }
-                let k = y * w + x;
-                let (i, j, f) = mean_time(times, a.alpha / a.w);
-                let before = then[i][k].lerp(then[j][k], f);
-                let mut l = a.radiance / a.w + now[k] - before;
-                if let Some((r, q)) = records.zip(shading.diffuse_query(&sp)) {
-                    let ei = r.irradiance(&q, times[i])?;
-                    let before = if j == i {
-                        ei
-                    } else {
-                        ei.lerp(r.irradiance(&q, times[j])?, f)
-                    };
-                    l += q.albedo * FRAC_1_PI * (r.irradiance(&q, t)? - before);
-                }
-                row[x] = l.max(Vec3::ZERO);
             }
             Ok(misses)
         })

@@ -19,12 +19,17 @@
 //! which makes their mean less noisy than independent samples: the
 //! estimate errs high there, on the safe side.
 //!
-//! **Window and floor.** A pixel's error is the root of the mean variance
-//! of the means of the pixels in its 3 × 3 window, over the larger of the window's mean luminance and a floor:
-//! [`FLOOR`] times the median luminance of the pixels whose centre ray
-//! meets a surface, after the first round. Relative error alone would
-//! sample a black pixel forever; the median, unlike the mean, does not grow
-//! with the few bright pixels of a light seen directly.
+//! **Window and floor.** A pixel's error is the root mean square, over
+//! its 3 × 3 window, of each pixel's relative standard error: the standard
+//! error of its mean over the larger of its mean and a floor, [`FLOOR`]
+//! times the median luminance of the pixels whose centre ray meets a
+//! surface, after the first round. Relative error alone would sample a
+//! black pixel forever; the median, unlike the mean, does not grow with the
+//! few bright pixels of a light seen directly. Each pixel is made relative
+//! to its own luminance before the window mixes them: a window's summed
+//! variance over its summed luminance would let the bright, noisy edge of
+//! a light hold the dark ceiling beside it at the sample limit, its own
+//! samples all alike.
 //!
 //! **Bias.** Stopping a pixel when its estimate happens to be low favours
 //! sample sets that missed rare bright paths; the window's many degrees of
@@ -148,20 +153,18 @@ pub(super) fn relative_errors(width: u32, moments: &[Moments], floor: f64) -> Ve
     use rayon::prelude::*;
     out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         for (x, e) in row.iter_mut().enumerate() {
-            let (mut var, mut lum, mut k) = (0.0f64, 0.0f64, 0u32);
+            let (mut sum, mut k) = (0.0f64, 0u32);
             for yy in y.saturating_sub(1)..(y + 2).min(h) {
                 for xx in x.saturating_sub(1)..(x + 2).min(w) {
                     let m = &moments[yy * w + xx];
-                    var += m.variance_of_mean();
-                    lum += m.mean as f64;
+                    let var = m.variance_of_mean();
+                    if var > 0.0 {
+                        sum += var / (m.mean as f64).max(floor).powi(2);
+                    }
                     k += 1;
                 }
             }
-            *e = if var == 0.0 {
-                0.0
-            } else {
-                ((var / k as f64).sqrt() / (lum / k as f64).max(floor)) as f32
-            };
+            *e = (sum / k as f64).sqrt() as f32;
         }
     });
     out
@@ -170,16 +173,18 @@ pub(super) fn relative_errors(width: u32, moments: &[Moments], floor: f64) -> Ve
 /// How many samples a pixel with `n` samples and estimated error `error`
 /// should have after the next round; `None`: it is done. The variance of
 /// a mean falls as `1/n`, so `n (error / target)²` would reach the target
-/// if the estimate were exact; a round at most doubles the count, so that
+/// if the estimate were exact. A round at most doubles the count, so that
 /// an estimate that errs high (few samples, a noisy window) is checked
-/// again before the limit is spent on it.
+/// again before the limit is spent on it, and adds at least half: every
+/// round passes over the whole image, and pixels just above the target
+/// would otherwise creep up a sample a round.
 pub(super) fn next_count(n: u32, error: f32, target: &NoiseTarget) -> Option<u32> {
     if n >= target.max_spp || error <= target.relative {
         return None;
     }
     let wanted = (n as f64 * (error as f64 / target.relative as f64).powi(2)).ceil();
-    let next = wanted.min(2.0 * n as f64).min(target.max_spp as f64) as u32;
-    Some(next.max(n + 1))
+    let next = wanted.clamp((1.5 * n as f64).ceil(), 2.0 * n as f64);
+    Some((next as u32).min(target.max_spp))
 }
 
 /// What a base image's samples reached, over the pixels whose centre ray
@@ -318,25 +323,30 @@ mod tests {
             max_spp: 100,
         };
         assert_eq!(next_count(8, 0.01, &t), None);
-        assert_eq!(next_count(8, 0.011, &t), Some(10)); // 8 · 1.21 = 9.7
+        assert_eq!(next_count(8, 0.011, &t), Some(12)); // 8 · 1.21 = 9.7
+        assert_eq!(next_count(8, 0.015, &t), Some(14)); // 8 · 2.25 = 14
         assert_eq!(next_count(8, 1.0, &t), Some(16));
         assert_eq!(next_count(64, 1.0, &t), Some(100));
         assert_eq!(next_count(100, 1.0, &t), None);
         assert_eq!(next_count(1, f32::INFINITY, &t), Some(2));
+        assert_eq!(next_count(99, 0.011, &t), Some(100));
     }
 
     #[test]
     fn a_black_window_has_no_error_and_a_dark_one_is_measured_against_the_floor() {
         let m = |mean: f32, m2: f32| Moments { n: 4, mean, m2 };
         // 3 x 1: black, dark and noisy, bright and exact.
-        let ms = [m(0.0, 0.0), m(0.01, 0.12), m(1.0, 0.0)];
+        let ms = [m(0.0, 0.0), m(0.1, 0.12), m(1.0, 0.0)];
         let e = relative_errors(3, &ms, 0.0);
-        // Variance of the dark pixel's mean: 0.12 / 3 / 4 = 0.01.
-        let sd = |k: f64| (0.01f64 / k).sqrt();
-        assert!((e[0] as f64 - sd(2.0) / (0.01 / 2.0)).abs() < 1e-4);
-        assert!((e[1] as f64 - sd(3.0) / (1.01 / 3.0)).abs() < 1e-4);
+        // The dark pixel's mean: variance 0.12 / 3 / 4 = 0.01, relative
+        // variance 0.01 / 0.1² = 1, shared by the windows it is in.
+        let close = |a: f32, b: f64| (a as f64 - b).abs() < 1e-6;
+        assert!(close(e[0], (1.0f64 / 2.0).sqrt()), "{e:?}");
+        assert!(close(e[1], (1.0f64 / 3.0).sqrt()), "{e:?}");
+        assert!(close(e[2], (1.0f64 / 2.0).sqrt()), "{e:?}");
+        // Below the floor, relative to the floor: 0.01 / 0.5² = 0.04.
         let floored = relative_errors(3, &ms, 0.5);
-        assert!((floored[0] as f64 - sd(2.0) / 0.5).abs() < 1e-5);
+        assert!(close(floored[1], (0.04f64 / 3.0).sqrt()), "{floored:?}");
         let black = relative_errors(2, &[m(0.0, 0.0), m(0.0, 0.0)], 0.0);
         assert_eq!(black, vec![0.0, 0.0]);
     }

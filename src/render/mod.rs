@@ -68,7 +68,7 @@ struct TileResult {
 /// How a render sampled its pixels: every pixel's sample count and
 /// estimated relative error (see [`noise`]), and what they come to.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Sampling {
+pub struct Sampled {
     pub samples: Vec<u32>,
     pub error: Vec<f32>,
     /// The luminance below which errors are measured against it.
@@ -170,7 +170,7 @@ fn shade_tiles(
     image: &mut RangeImage,
     shade: &Shade,
     progress: Progress,
-) -> (u64, Vec<[Vec3; 2]>, Sampling) {
+) -> (u64, Vec<[Vec3; 2]>, Sampled) {
     let (w, h) = (camera.width, camera.height);
     let tiles: Vec<(u32, u32)> = (0..h.div_ceil(TILE))
         .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
@@ -260,13 +260,13 @@ fn shade_tiles(
     let error = noise::relative_errors(w, &moments, floor);
     let samples: Vec<u32> = moments.iter().map(|m| m.n).collect();
     let report = NoiseReport::new(&image.object_id, &samples, &error, target);
-    let sampling = Sampling {
+    let sampled = Sampled {
         samples,
         error,
         floor,
         report,
     };
-    (rays, parts, sampling)
+    (rays, parts, sampled)
 }
 
 /// Where in its pixel each sample looks: the first `n²` samples

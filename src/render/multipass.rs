@@ -33,7 +33,7 @@ use super::hit::SurfaceHit;
 use super::integrator::{power_heuristic, Integrator};
 use super::lights::Lights;
 use super::noise::NoiseTarget;
-use super::{first_hits, shade_tiles, Progress, RenderSettings, RenderStats, Sampling};
+use super::{first_hits, shade_tiles, Progress, RenderSettings, RenderStats, Sampled};
 use crate::accel::RayEngine;
 use crate::bsdf::{Frame, Lobes};
 use crate::camera::Camera;
@@ -72,7 +72,7 @@ pub struct Layers {
     /// when a shadow moves, and what synthesis re-shades.
     pub diffuse_direct: Vec<Vec3>,
     pub stats: RenderStats,
-    pub sampling: Sampling,
+    pub sampling: Sampled,
 }
 
 /// Renders `camera`'s view at `time`; `engine` holds the scene posed at

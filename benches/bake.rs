@@ -65,6 +65,7 @@ fn bake(c: &mut Criterion) {
                     TIME,
                     &settings,
                     indirect,
+                    None,
                     Progress::Pixels(&indicatif::ProgressBar::hidden()),
                 )
                 .expect("base image")

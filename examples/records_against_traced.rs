@@ -82,6 +82,7 @@ fn main() -> Result<()> {
             time,
             &settings,
             indirect,
+            None,
             render::Progress::Tiles,
         )?;
         means.push((mean(&out.image.radiance), mean(&out.indirect)));

@@ -148,6 +148,9 @@ typedef uint32_t rw_filter;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
+// The bake's sampling settings besides `Settings::spp`.
+typedef struct Sampling Sampling;
+
 // A finished bake with the scene it was made from (opaque). `rw_synth`
 // may run on one bake from several threads at once; each thread keeps the
 // base images it read (up to `base_memory_mib` each) for its next frame.
@@ -184,6 +187,13 @@ typedef struct {
   // `shard_count` 0 or 1: every image.
   uint32_t shard_index;
   uint32_t shard_count;
+  // Relative standard error of a base pixel's mean luminance at which
+  // it stops taking samples (`--noise`; 0.02: 2 %); 0: the CLI's
+  // default, 0.02. `spp` is the least a pixel takes.
+  float noise;
+  // Most samples a base pixel takes (`--max-spp`); 0: 16 × `spp`.
+  // Equal to `spp`: every pixel takes `spp` samples.
+  uint32_t max_spp;
 } rw_bake_options;
 
 // Reports a bake's progress, on the thread that called `rw_bake_run`:

@@ -766,6 +766,10 @@ struct BakeArgs {
     finish: Option<PathBuf>,
 }
 
+/// `--noise`: a target, or none (`off`). Named apart from `Option` so that
+/// clap takes it as the value of an argument that always has one.
+type NoiseOption = Option<f32>;
+
 /// The settings of a bake besides its scene, quality and directory, shared
 /// by `bake` and `slurm` (which passes them on to the jobs).
 #[derive(clap::Args)]
@@ -778,9 +782,17 @@ struct BakeOptions {
     /// default --size so that no base pixel is coarser than a frame pixel.
     #[arg(long, default_value = bake::DEFAULT_FRAME_SIZE, value_parser = image::parse_size)]
     frame_size: (u32, u32),
-    /// Samples per base-image pixel.
+    /// Samples per base-image pixel; with --noise, the least a pixel takes.
     #[arg(long, default_value_t = bake::DEFAULT_SPP)]
     spp: u32,
+    /// Relative standard error of a base pixel's mean luminance at which it
+    /// stops taking samples (0.02: 2 %), or `off`: every pixel takes --spp
+    /// [default: 0.02].
+    #[arg(long, value_name = "REL|off", value_parser = bake::sampling::parse_noise, allow_negative_numbers = true)]
+    noise: Option<NoiseOption>,
+    /// Most samples a base pixel takes with --noise (default: 16 × --spp).
+    #[arg(long)]
+    max_spp: Option<u32>,
     #[arg(long, value_parser = cli::choice::<BaseProjection>(), default_value_t = BaseProjection::Sphere)]
     projection: BaseProjection,
     /// Diffuse indirect light: radiosity records (the paper's multipass
@@ -808,7 +820,11 @@ struct BakeOptions {
 impl BakeOptions {
     /// The settings these options give for `s`, and a line saying how the
     /// image size was chosen.
-    fn settings(&self, s: &Scene, quality: Quality) -> Result<(bake::Settings, String)> {
+    fn settings(
+        &self,
+        s: &Scene,
+        quality: Quality,
+    ) -> Result<(bake::Settings, bake::Sampling, String)> {
         let (size, why) = bake::size::resolve(s, self.size, self.projection, self.frame_size)?;
         let settings = bake::Settings {
             quality: quality.get(),
@@ -825,7 +841,12 @@ impl BakeOptions {
                 view_fitness: self.view_fitness,
             },
         };
-        Ok((settings, why))
+        let sampling = bake::Sampling {
+            noise: self.noise.unwrap_or(Some(bake::sampling::DEFAULT_NOISE)),
+            max_spp: self.max_spp,
+        };
+        sampling.check(self.spp)?;
+        Ok((settings, sampling, why))
     }
 
     /// The same options as `rangewalk bake` arguments, every one spelled
@@ -844,6 +865,11 @@ impl BakeOptions {
             format!("{}x{}", self.frame_size.0, self.frame_size.1),
         );
         push("--spp", self.spp.to_string());
+        let noise = self.noise.unwrap_or(Some(bake::sampling::DEFAULT_NOISE));
+        push("--noise", noise.map_or("off".into(), |n| n.to_string()));
+        if let Some(m) = self.max_spp {
+            push("--max-spp", m.to_string());
+        }
         push("--projection", self.projection.to_string());
         push("--indirect", self.indirect.to_string());
         push("--seed", self.seed.to_string());
@@ -883,7 +909,7 @@ fn bake_command(args: BakeArgs) -> Result<()> {
         args.shard
     };
     let s = load(scene)?;
-    let (settings, why) = args.options.settings(&s, quality)?;
+    let (settings, sampling, why) = args.options.settings(&s, quality)?;
     println!("{why}");
     let mut engine = engine_at_start(&s, settings.backend)?;
     let options = PlanOptions {
@@ -894,9 +920,18 @@ fn bake_command(args: BakeArgs) -> Result<()> {
     };
     let plan = |e: &mut dyn InstancedEngine| plan::make(&s, e, &options);
     let summary = if args.prepare {
-        bake::prepare(&s, out, &settings, engine.as_mut(), plan)?
+        bake::prepare(&s, out, &settings, &sampling, engine.as_mut(), plan)?
     } else {
-        bake::run(&s, out, &settings, shard, engine.as_mut(), plan)?
+        bake::run_observed(
+            &s,
+            out,
+            &settings,
+            &sampling,
+            shard,
+            engine.as_mut(),
+            plan,
+            &mut |_| true,
+        )?
     };
     if summary.removed > 0 {
         println!(
@@ -964,6 +999,9 @@ fn bake_command(args: BakeArgs) -> Result<()> {
             settings.backend
         );
     }
+    if let Some(noise) = &summary.noise {
+        println!("  noise ({}): {noise}", sampling.describe());
+    }
     if summary.complete {
         println!("bake complete: {}", out.display());
     } else {
@@ -1024,6 +1062,9 @@ fn bake_status(dir: &Path) -> Result<()> {
     );
     if !st.missing.is_empty() {
         println!("  to do: {}", some_of(&st.missing));
+    }
+    if let Some(noise) = &st.noise {
+        println!("  noise of the done images: {noise}");
     }
     for h in &st.running {
         println!("  running: {h}");
@@ -1093,11 +1134,11 @@ fn slurm_command(a: SlurmArgs) -> Result<()> {
     let quality = Quality::new(a.quality).context("--quality")?;
     image::check_output_dir("--out", &a.out)?;
     let s = load(&a.scene)?;
-    let (settings, why) = a.options.settings(&s, quality)?;
+    let (settings, sampling, why) = a.options.settings(&s, quality)?;
     if a.tasks == 0 {
         bail!("--tasks must be at least 1");
     }
-    bake::check_resumable(&s, &a.out, &settings)?;
+    bake::check_resumable(&s, &a.out, &settings, &sampling)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let absolute =
         |p: &Path| std::fs::canonicalize(p).with_context(|| format!("resolving {}", p.display()));

@@ -284,6 +284,7 @@ fn a_sphere_base_image_resampled_into_a_pinhole_view_agrees_with_a_pinhole_rende
         0.0,
         &s(64, 1),
         Indirect::Traced,
+        None,
         Progress::Tiles,
     )
     .unwrap();
@@ -444,6 +445,7 @@ fn shards_of_one_bake_run_together_and_other_runs_on_their_images_are_refused() 
                 scene,
                 dir,
                 settings,
+                &bake::Sampling::FLAT,
                 shard,
                 e.as_mut(),
                 |_| Ok(plan),

@@ -129,7 +129,10 @@ fn a_killed_bake_started_again_equals_an_uninterrupted_one() {
     for e in std::fs::read_dir(killed.join("images")).unwrap() {
         let name = e.unwrap().file_name().to_string_lossy().into_owned();
         assert!(
-            name.starts_with('.') || name.ends_with(".exr") || name.ends_with(".fnv1a64"),
+            name.starts_with('.')
+                || name.ends_with(".exr")
+                || name.ends_with(".noise.json")
+                || name.ends_with(".fnv1a64"),
             "{name}"
         );
     }
@@ -180,12 +183,90 @@ fn bake_errors_name_the_option_or_file_at_fault() {
         let err = String::from_utf8_lossy(&r.stderr);
         assert!(!r.status.success() && err.contains(expect), "{a:?}: {err}");
     }
+    // Sampling: each bad value named with its option; nothing is made.
+    for (extra, expect) in [
+        (vec!["--noise", "0"], "--noise 0 is not a relative error"),
+        (
+            vec!["--noise", "-0.1"],
+            "--noise -0.1 is not a relative error",
+        ),
+        (
+            vec!["--noise", "NaN"],
+            "--noise NaN is not a relative error",
+        ),
+        (
+            vec!["--noise", "1.5"],
+            "--noise 1.5 is not a relative error",
+        ),
+        (vec!["--noise", "lots"], "`lots` is not a number"),
+        (vec!["--max-spp", "4"], "--max-spp 4 is below --spp 8"),
+        (
+            vec!["--noise", "off", "--max-spp", "64"],
+            "--max-spp 64 applies with a --noise target only",
+        ),
+    ] {
+        let a = with(args(&scene, o), &extra);
+        let r = run(&a);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success() && err.contains(expect), "{a:?}: {err}");
+        assert!(!out.exists(), "{a:?} made {}", out.display());
+    }
     // A folder that holds something else is not written into.
     std::fs::create_dir(&out).unwrap();
     std::fs::write(out.join("notes.txt"), "mine").unwrap();
     let r = run(&args(&scene, o));
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(!r.status.success() && err.contains("not a bake"), "{err}");
+}
+
+/// A bake to a noise target reports the noise each image reached, beside
+/// it and then in the manifest, and `--status` sums it up; resuming it with
+/// another target is refused naming both, while naming the default limit
+/// is the same bake.
+#[test]
+fn noise_reports_are_kept_and_another_target_is_refused() {
+    let scene = scene("cornell-box");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("b");
+    let o = out.to_str().unwrap();
+    let bake = with(traced(&scene, o, "32", "2"), &["--noise", "0.05"]);
+    let r = run(&bake);
+    let (stdout, stderr) = text(&r);
+    assert!(r.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("noise (--noise 0.05): relative error"),
+        "{stdout}"
+    );
+    let m = Manifest::read(&out).unwrap();
+    assert_eq!(m.sampling.noise, Some(0.05));
+    for e in &m.images {
+        let report = e
+            .noise
+            .unwrap_or_else(|| panic!("{} has no report", e.file));
+        assert!(
+            stderr.contains(&format!("{}: relative error", e.file)),
+            "{stderr}"
+        );
+        assert!(report.pixels > 0 && report.mean_spp >= 2.0, "{report:?}");
+        assert!(report.at_limit.is_some_and(|s| (0.0..=1.0).contains(&s)));
+        let kept = rangewalk::bake::sampling::read_report(&out.join(&e.file));
+        assert_eq!(kept, Some(report));
+    }
+    let r = run(&["bake", "--status", o]);
+    assert!(text(&r)
+        .0
+        .contains("noise of the done images: relative error"));
+
+    let r = run(&with(traced(&scene, o, "32", "2"), &["--noise", "0.02"]));
+    let err = text(&r).1;
+    assert!(
+        !r.status.success() && err.contains("--noise 0.05, not --noise 0.02"),
+        "{err}"
+    );
+    let r = run(&with(bake.clone(), &["--max-spp", "32"]));
+    assert!(r.status.success(), "{}", text(&r).1);
+    let done = format!("0 rendered, {} already done", m.images.len());
+    assert!(text(&r).0.contains(&done), "{}", text(&r).0);
 }
 
 /// `rangewalk bake` of the Cornell box with traced indirect light (no

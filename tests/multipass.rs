@@ -763,6 +763,7 @@ mod with_solver {
                     0.0,
                     &settings(128, None, seed),
                     indirect,
+                    None,
                     render::Progress::Tiles,
                 )
                 .unwrap()

@@ -86,8 +86,9 @@ fn assert_same_bake(a: &Path, b: &Path) {
     assert_eq!(ma.settings, mb.settings);
 }
 
-/// Every image file under its final name is whole (it reads), and every
-/// checksum file matches its image: nothing half-written.
+/// Every image file under its final name is whole (it reads), every
+/// noise report reads, and every checksum file matches its image: nothing
+/// half-written.
 fn assert_nothing_half_written(dir: &Path) {
     for entry in std::fs::read_dir(dir.join("images")).unwrap() {
         let path = entry.unwrap().path();
@@ -100,6 +101,9 @@ fn assert_nothing_half_written(dir: &Path) {
             let sum = exr_content_hash(path.with_file_name(image))
                 .unwrap_or_else(|e| panic!("{image} has a checksum but does not read: {e:#}"));
             assert_eq!(recorded.trim(), format!("{sum:016x}"), "{name}");
+        } else if let Some(image) = name.strip_suffix(".noise.json") {
+            let report = rangewalk::bake::sampling::read_report(&path.with_file_name(image));
+            assert!(report.is_some(), "{name} is half-written");
         } else {
             assert!(name.ends_with(".exr"), "unexpected file {name}");
             exr_content_hash(&path).unwrap_or_else(|e| panic!("{name} is half-written: {e:#}"));

@@ -19,14 +19,16 @@ use crate::image;
 use crate::plan::Plan;
 use crate::scene::hash::ContentHash;
 
-use super::Settings;
+use super::{Sampling, Settings};
+use crate::render::noise::NoiseReport;
 
 /// Identifies a base-image bake manifest.
 pub const FORMAT: &str = "rangewalk-base-images";
-/// Bumped whenever the layout changes. Version 3 records the planning
-/// settings; version 2 is read too (see [`Manifest::read`]); others are
+/// Bumped whenever the layout changes. Version 4 records the sampling
+/// settings and each image's noise, version 3 the planning settings;
+/// versions 2 and 3 are read too (see [`Manifest::read`]); others are
 /// refused.
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 pub const MANIFEST: &str = "manifest.json";
 /// The object-space bake (radiosity), when indirect light comes from it.
 pub const RADIOSITY: &str = "radiosity";
@@ -41,6 +43,9 @@ pub struct Manifest {
     pub scene: PathBuf,
     pub scene_hash: ContentHash,
     pub settings: Settings,
+    /// Absent before version 4, whose bakes sampled every pixel alike.
+    #[serde(default = "flat")]
+    pub sampling: Sampling,
     pub plan: Plan,
     /// Every (view, time) image, in the order shards count them.
     pub images: Vec<ImageEntry>,
@@ -61,6 +66,14 @@ pub struct ImageEntry {
     /// the `rangewalk:*` attributes, as `image::exr_content_hash`), once
     /// the bake is complete.
     pub fnv1a64: Option<String>,
+    /// The noise the image reached (`render::noise`), once the bake is
+    /// complete; absent before version 4.
+    #[serde(default)]
+    pub noise: Option<NoiseReport>,
+}
+
+fn flat() -> Sampling {
+    Sampling::FLAT
 }
 
 impl Manifest {
@@ -79,7 +92,7 @@ impl Manifest {
         }
         let mut m = m;
         match m.version {
-            VERSION => {}
+            VERSION | 3 => {}
             // Version 2 did not record the planning settings, but its plans
             // did, as made: the id-image side, whether one master list, and
             // the view fitness (ids, the only one there was before plans
@@ -97,7 +110,7 @@ impl Manifest {
                 }
             }
             v => bail!(
-                "{}: `version` is {v}, this rangewalk reads versions 2 and {VERSION}: \
+                "{}: `version` is {v}, this rangewalk reads versions 2 to {VERSION}: \
                  bake it again into a new directory with this rangewalk, or use the rangewalk that made it",
                 path.display(),
             ),
@@ -221,6 +234,7 @@ mod tests {
             time,
             file: file.into(),
             fnv1a64: None,
+            noise: None,
         }
     }
 
@@ -253,6 +267,7 @@ mod tests {
                 max_depth: None,
                 planning: super::super::Planning::default(),
             },
+            sampling: Sampling::FLAT,
             plan: Plan {
                 views,
                 ..Plan::default()

@@ -32,17 +32,20 @@ use crate::radiosity::lookup::IrradianceCache;
 use crate::radiosity::temporal::TimeSeries;
 use crate::radiosity::{self, bake as radiosity_bake, Quality, Simplified};
 use crate::render::multipass::{self, Indirect};
+use crate::render::noise::NoiseReport;
 use crate::render::{Progress, RenderSettings};
 use crate::scene::hash::ContentHash;
 use crate::scene::Scene;
 
 pub mod lock;
 pub mod manifest;
+pub mod sampling;
 pub mod size;
 pub mod slurm;
 pub mod status;
 
 pub use manifest::{ImageEntry, Manifest};
+pub use sampling::Sampling;
 
 /// The layers a base image holds besides its radiance.
 pub const DIRECT: &str = "direct";
@@ -97,8 +100,8 @@ pub enum IndirectSource {
     Path,
 }
 
-/// Everything that decides a bake's images. A bake is resumed or extended
-/// (by shards) only with the same settings.
+/// Everything that decides a bake's images besides its [`Sampling`]. A
+/// bake is resumed or extended (by shards) only with the same settings.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Settings {
     pub quality: f32,
@@ -215,6 +218,8 @@ pub struct Summary {
     pub plan_seconds: Option<f64>,
     /// Temporary files that stopped runs had left, removed by this one.
     pub removed: usize,
+    /// The noise the images rendered now reached, together.
+    pub noise: Option<NoiseReport>,
 }
 
 /// The image's path relative to the bake directory.
@@ -237,6 +242,7 @@ pub fn image_entries(plan: &Plan) -> Vec<ImageEntry> {
                     time,
                     file: image_file(v, j),
                     fnv1a64: None,
+                    noise: None,
                 })
         })
         .collect()
@@ -287,7 +293,8 @@ pub fn image_seed(seed: u64, view: usize, time: f32) -> u64 {
 /// made from this scene with these settings, plans (with `plan`) only when
 /// starting, solves radiosity once, renders this shard's missing or damaged
 /// images, and marks the bake complete when no image of any shard is
-/// missing.
+/// missing. Every pixel takes `settings.spp` samples ([`Sampling::FLAT`]);
+/// [`run_observed`] samples to a noise target.
 pub fn run(
     scene: &Scene,
     dir: &Path,
@@ -296,18 +303,29 @@ pub fn run(
     engine: &mut dyn InstancedEngine,
     plan: impl FnOnce(&mut dyn InstancedEngine) -> Result<Plan>,
 ) -> Result<Summary> {
-    run_observed(scene, dir, settings, shard, engine, plan, &mut |_| true)
+    run_observed(
+        scene,
+        dir,
+        settings,
+        &Sampling::FLAT,
+        shard,
+        engine,
+        plan,
+        &mut |_| true,
+    )
 }
 
-/// [`run`], telling `observe` on the calling thread the fraction of this
+/// [`run`] with `sampling`, telling `observe` on the calling thread the fraction of this
 /// run's images finished: 0 before the first (after planning and
 /// radiosity), then after each image. Answering `false` stops the run
 /// before its next image with [`Cancelled`], leaving the bake to be
 /// resumed; a run with nothing left to render never asks.
+#[allow(clippy::too_many_arguments)]
 pub fn run_observed(
     scene: &Scene,
     dir: &Path,
     settings: &Settings,
+    sampling: &Sampling,
     shard: Shard,
     engine: &mut dyn InstancedEngine,
     plan: impl FnOnce(&mut dyn InstancedEngine) -> Result<Plan>,
@@ -325,12 +343,12 @@ pub fn run_observed(
     let (mut manifest, _running) = {
         // Hashed outside the lock, which shards take one after another.
         let hash = ContentHash::of(scene)?;
-        let setup = lock_bake(dir, settings, &me)?;
+        let setup = lock_bake(dir, settings, sampling, &me)?;
         let manifest = start_or_resume(
             scene,
             &hash,
             dir,
-            settings,
+            (settings, sampling),
             engine,
             plan,
             &mut summary,
@@ -379,6 +397,7 @@ pub fn run_observed(
             .expect("progress template is valid"),
         );
         let start = Instant::now();
+        let mut reports = Vec::with_capacity(todo.len());
         if !observe(0.0) {
             bar.finish_and_clear();
             return Err(Cancelled.into());
@@ -386,11 +405,12 @@ pub fn run_observed(
         for (n, &k) in todo.iter().enumerate() {
             let e = manifest.images[k].clone();
             bar.set_message(format!("image {}/{}", n + 1, todo.len()));
-            let stats = render_image(
+            let (stats, report) = render_image(
                 scene,
                 &manifest,
                 &e,
                 settings,
+                sampling,
                 engine,
                 indirect.as_ref(),
                 dir,
@@ -401,6 +421,9 @@ pub fn run_observed(
             checked[k] = true;
             summary.samples += stats.samples;
             summary.rays += stats.rays;
+            bar.suspend(|| eprintln!("{}: {report}", e.file));
+            reports.push(report);
+            summary.noise = NoiseReport::combine(&reports);
             if !observe((n + 1) as f32 / todo.len() as f32) && n + 1 < todo.len() {
                 bar.finish_and_clear();
                 return Err(Cancelled.into());
@@ -437,6 +460,7 @@ pub fn prepare(
     scene: &Scene,
     dir: &Path,
     settings: &Settings,
+    sampling: &Sampling,
     engine: &mut dyn InstancedEngine,
     plan: impl FnOnce(&mut dyn InstancedEngine) -> Result<Plan>,
 ) -> Result<Summary> {
@@ -444,12 +468,12 @@ pub fn prepare(
     let me = lock::Holder::me("preparing", Shard::ALL);
     // Held throughout: preparing is the serial part of the bake.
     let hash = ContentHash::of(scene)?;
-    let setup = lock_bake(dir, settings, &me)?;
+    let setup = lock_bake(dir, settings, sampling, &me)?;
     let manifest = start_or_resume(
         scene,
         &hash,
         dir,
-        settings,
+        (settings, sampling),
         engine,
         plan,
         &mut summary,
@@ -472,8 +496,14 @@ pub fn prepare(
 /// refusing settings that cannot make a bake and a directory that holds
 /// something else: no lock file is left for nothing, or in someone else's
 /// folder.
-fn lock_bake(dir: &Path, settings: &Settings, me: &lock::Holder) -> Result<lock::Setup> {
+fn lock_bake(
+    dir: &Path,
+    settings: &Settings,
+    sampling: &Sampling,
+    me: &lock::Holder,
+) -> Result<lock::Setup> {
     ensure!(settings.spp > 0, "--spp must be at least 1");
+    sampling.check(settings.spp)?;
     ensure!(settings.size > 0, "--size must be at least 1");
     settings.resolved()?;
     if !dir.join(manifest::MANIFEST).exists() {
@@ -507,7 +537,13 @@ fn radiosity_once(
 /// Refuses to go on with the bake in `dir` when it was made from another
 /// scene or with other settings, or when `dir` holds something that is no
 /// bake; a missing or empty directory passes.
-pub fn check_resumable(scene: &Scene, dir: &Path, settings: &Settings) -> Result<()> {
+pub fn check_resumable(
+    scene: &Scene,
+    dir: &Path,
+    settings: &Settings,
+    sampling: &Sampling,
+) -> Result<()> {
+    sampling.check(settings.spp)?;
     if !dir.join(manifest::MANIFEST).exists() {
         return check_fresh(dir);
     }
@@ -515,7 +551,7 @@ pub fn check_resumable(scene: &Scene, dir: &Path, settings: &Settings) -> Result
         &Manifest::read(dir)?,
         dir,
         &ContentHash::of(scene)?,
-        settings,
+        (settings, sampling),
     )
 }
 
@@ -553,7 +589,7 @@ fn start_or_resume(
     scene: &Scene,
     hash: &ContentHash,
     dir: &Path,
-    settings: &Settings,
+    (settings, sampling): (&Settings, &Sampling),
     engine: &mut dyn InstancedEngine,
     plan: impl FnOnce(&mut dyn InstancedEngine) -> Result<Plan>,
     summary: &mut Summary,
@@ -561,7 +597,7 @@ fn start_or_resume(
 ) -> Result<Manifest> {
     let manifest = if dir.join(manifest::MANIFEST).exists() {
         let m = Manifest::read(dir)?;
-        if let Err(e) = check_fits(&m, dir, hash, settings) {
+        if let Err(e) = check_fits(&m, dir, hash, (settings, sampling)) {
             // Name who is baking it now, if anyone: the likely author.
             return Err(match setup.anyone() {
                 Some(h) => anyhow::anyhow!("{e:#}; it is being baked now by {h}"),
@@ -585,6 +621,7 @@ fn start_or_resume(
             scene: std::fs::canonicalize(&scene.source).unwrap_or_else(|_| scene.source.clone()),
             scene_hash: hash.clone(),
             settings: *settings,
+            sampling: *sampling,
             images: image_entries(&plan),
             plan,
             complete: false,
@@ -599,7 +636,12 @@ fn start_or_resume(
 
 /// Refuses a bake made from another scene or with other settings, saying
 /// what differs.
-fn check_fits(m: &Manifest, dir: &Path, hash: &ContentHash, settings: &Settings) -> Result<()> {
+fn check_fits(
+    m: &Manifest,
+    dir: &Path,
+    hash: &ContentHash,
+    (settings, sampling): (&Settings, &Sampling),
+) -> Result<()> {
     let changes = m.scene_hash.differences(hash);
     if !changes.is_empty() {
         bail!(
@@ -615,6 +657,14 @@ fn check_fits(m: &Manifest, dir: &Path, hash: &ContentHash, settings: &Settings)
             "{} was baked with other settings ({}); use them to resume it, or another directory",
             dir.display(),
             describe_difference(&was, &now)
+        );
+    }
+    if m.sampling.target(was.spp) != sampling.target(now.spp) {
+        bail!(
+            "{} was baked with other settings ({}, not {}); use them to resume it, or another directory",
+            dir.display(),
+            m.sampling.describe(),
+            sampling.describe()
         );
     }
     Ok(())
@@ -698,11 +748,12 @@ fn render_image(
     manifest: &Manifest,
     e: &ImageEntry,
     settings: &Settings,
+    sampling: &Sampling,
     engine: &mut dyn InstancedEngine,
     indirect: Option<&(Simplified, TimeSeries)>,
     dir: &Path,
     bar: &ProgressBar,
-) -> Result<crate::render::RenderStats> {
+) -> Result<(crate::render::RenderStats, NoiseReport)> {
     let view = &manifest.plan.views[e.view];
     let camera = base_camera(scene, view.position, settings)?;
     engine
@@ -727,6 +778,7 @@ fn render_image(
         e.time,
         &render_settings,
         source,
+        sampling.target(settings.spp),
         Progress::Pixels(bar),
     )?;
     let direct: Vec<Vec3> = out
@@ -746,11 +798,13 @@ fn render_image(
             (DIFFUSE_DIRECT, &out.diffuse_direct),
         ],
     )?;
+    let report = out.sampling.report;
+    sampling::write_report(&path, &report)?;
     crate::output::write_file(
         &manifest::checksum_path(&path),
         manifest::hex(sum).as_bytes(),
     )?;
-    Ok(out.stats)
+    Ok((out.stats, report))
 }
 
 /// A complete bake, opened for reading against the scene in hand.

@@ -10,8 +10,9 @@ use rayon::prelude::*;
 
 use super::lock::{self, Holder};
 use super::manifest::{self, Manifest, RADIOSITY};
-use super::{IndirectSource, Shard};
+use super::{sampling, IndirectSource, Shard};
 use crate::radiosity::bake as radiosity_bake;
+use crate::render::noise::NoiseReport;
 
 /// What a bake directory holds now.
 #[derive(Clone, Debug, PartialEq)]
@@ -34,6 +35,9 @@ pub struct Status {
     pub running: Vec<Holder>,
     /// Temporary files of stopped runs removed (by `finish`).
     pub removed: usize,
+    /// The noise the done images reached, together (images of a
+    /// rangewalk before manifest version 4 have no report).
+    pub noise: Option<NoiseReport>,
 }
 
 /// Counts the done images of the bake in `dir` from what is on disk,
@@ -59,6 +63,7 @@ pub fn status(dir: &Path) -> Result<Status> {
         sealed: m.complete,
         complete: m.complete && missing.is_empty(),
         radiosity: radiosity_solved(dir, &m),
+        noise: noise(dir, &m, &missing),
         missing,
         running: lock::running(dir),
         removed: 0,
@@ -93,10 +98,27 @@ pub fn finish(dir: &Path) -> Result<Status> {
         sealed: m.complete,
         complete: m.complete && bad.is_empty(),
         radiosity: radiosity_solved(dir, &m),
+        noise: noise(dir, &m, &bad),
         missing: bad,
         running: Vec::new(),
         removed,
     })
+}
+
+/// The reports of the images not `missing`, from the manifest where it
+/// holds them, else from beside the images.
+fn noise(dir: &Path, m: &Manifest, missing: &[String]) -> Option<NoiseReport> {
+    let missing: std::collections::HashSet<&String> = missing.iter().collect();
+    let reports: Vec<NoiseReport> = m
+        .images
+        .iter()
+        .filter(|e| !missing.contains(&e.file))
+        .filter_map(|e| {
+            e.noise
+                .or_else(|| sampling::read_report(&dir.join(&e.file)))
+        })
+        .collect();
+    NoiseReport::combine(&reports)
 }
 
 fn radiosity_solved(dir: &Path, m: &Manifest) -> Option<bool> {
@@ -138,6 +160,7 @@ pub(super) fn seal(dir: &Path, m: &mut Manifest, checked: &[bool]) -> Result<Vec
     if bad.is_empty() && !m.complete {
         for (e, sum) in m.images.iter_mut().zip(recorded) {
             e.fnv1a64 = sum;
+            e.noise = sampling::read_report(&dir.join(&e.file));
         }
         m.complete = true;
         m.write(dir)?;

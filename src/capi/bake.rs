@@ -9,7 +9,7 @@ use super::error::{guard, Failure};
 use super::scene::rw_scene;
 use super::status::rw_status;
 use crate::accel::{self, Backend};
-use crate::bake::{self, Bake, BaseProjection, IndirectSource, Shard};
+use crate::bake::{self, Bake, BaseProjection, IndirectSource, Sampling, Shard};
 use crate::plan::{self, PlanOptions};
 use crate::radiosity::{Quality, DEFAULT_QUALITY};
 use crate::scene::Scene;
@@ -58,6 +58,13 @@ pub struct rw_bake_options {
     /// `shard_count` 0 or 1: every image.
     pub shard_index: u32,
     pub shard_count: u32,
+    /// Relative standard error of a base pixel's mean luminance at which
+    /// it stops taking samples (`--noise`; 0.02: 2 %); 0: the CLI's
+    /// default, 0.02. `spp` is the least a pixel takes.
+    pub noise: f32,
+    /// Most samples a base pixel takes (`--max-spp`); 0: 16 × `spp`.
+    /// Equal to `spp`: every pixel takes `spp` samples.
+    pub max_spp: u32,
 }
 
 impl Default for rw_bake_options {
@@ -77,6 +84,8 @@ impl Default for rw_bake_options {
             max_depth: 0,
             shard_index: 0,
             shard_count: 1,
+            noise: bake::sampling::DEFAULT_NOISE,
+            max_spp: 0,
         }
     }
 }
@@ -95,8 +104,11 @@ pub unsafe extern "C" fn rw_bake_options_default(options: *mut rw_bake_options) 
     })
 }
 
-/// The settings, shard and frame size of a bake from C's options.
-fn settings(scene: &Scene, o: &rw_bake_options) -> Result<(bake::Settings, Shard), Failure> {
+/// The settings, sampling and shard of a bake from C's options.
+fn settings(
+    scene: &Scene,
+    o: &rw_bake_options,
+) -> Result<(bake::Settings, Sampling, Shard), Failure> {
     let quality =
         Quality::new(o.quality).map_err(|e| Failure::invalid(format!("options->quality: {e}")))?;
     let projection = match o.projection {
@@ -142,10 +154,32 @@ fn settings(scene: &Scene, o: &rw_bake_options) -> Result<(bake::Settings, Shard
             )))
         }
     };
+    let spp = or(o.spp, defaults.spp);
+    let noise = if o.noise == 0.0 {
+        defaults.noise
+    } else {
+        o.noise
+    };
+    if !(noise > 0.0 && noise <= 1.0) {
+        return Err(Failure::invalid(format!(
+            "options->noise {noise} is not a relative error in (0, 1] (0: the default, {})",
+            defaults.noise
+        )));
+    }
+    if o.max_spp != 0 && o.max_spp < spp {
+        return Err(Failure::invalid(format!(
+            "options->max_spp {} is below options->spp {spp}",
+            o.max_spp
+        )));
+    }
+    let sampling = Sampling {
+        noise: Some(noise),
+        max_spp: (o.max_spp != 0).then_some(o.max_spp),
+    };
     let settings = bake::Settings {
         quality: quality.get(),
         size,
-        spp: or(o.spp, defaults.spp),
+        spp,
         projection,
         indirect,
         seed: o.seed,
@@ -153,7 +187,7 @@ fn settings(scene: &Scene, o: &rw_bake_options) -> Result<(bake::Settings, Shard
         max_depth: (o.max_depth != 0).then_some(o.max_depth),
         planning: bake::Planning::default(),
     };
-    Ok((settings, shard))
+    Ok((settings, sampling, shard))
 }
 
 /// Reports a bake's progress, on the thread that called `rw_bake_run`:
@@ -193,7 +227,7 @@ pub unsafe extern "C" fn rw_bake_run(
         let options = unsafe { args::sized(options, rw_bake_options::default(), "options") }?;
         // SAFETY: as the caller promises.
         let dir = unsafe { args::path(dir, "dir") }?;
-        let (settings, shard) = settings(scene, &options)?;
+        let (settings, sampling, shard) = settings(scene, &options)?;
         let failed = |e| Failure::of(rw_status::RW_BAKE, e);
         let mut engine = accel::build(
             settings.backend,
@@ -216,6 +250,7 @@ pub unsafe extern "C" fn rw_bake_run(
             scene,
             &dir,
             &settings,
+            &sampling,
             shard,
             engine.as_mut(),
             |e| plan::make(scene, e, &plan_options),

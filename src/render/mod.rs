@@ -24,11 +24,13 @@ mod hit;
 mod integrator;
 mod lights;
 pub mod multipass;
+pub mod noise;
 pub mod surface;
 
 use crate::rng::Pcg32;
 use integrator::Integrator;
 use lights::Lights;
+use noise::{NoiseReport, NoiseTarget};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RenderSettings {
@@ -51,16 +53,27 @@ pub struct RenderStats {
 }
 
 const TILE: u32 = 16;
+/// Tiles shaded between merges into the image: bounds the memory of
+/// results waiting to be merged, whatever the image's size.
+const TILES_PER_MERGE: usize = 1024;
 
-/// One tile's mean radiances and their parts (see [`Shade`]), row-major
-/// within the tile, and its ray count.
+/// One tile's new samples: for each pixel of the tile that took samples
+/// this round, its index and the sums and luminance moments of its new
+/// samples (see [`Shade`]).
 struct TileResult {
-    x0: u32,
-    y0: u32,
-    w: u32,
-    radiance: Vec<Vec3>,
-    parts: Vec<[Vec3; 2]>,
+    pixels: Vec<(usize, [DVec3; 3], noise::Batch)>,
     rays: u64,
+}
+
+/// How a render sampled its pixels: every pixel's sample count and
+/// estimated relative error (see [`noise`]), and what they come to.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sampled {
+    pub samples: Vec<u32>,
+    pub error: Vec<f32>,
+    /// The luminance below which errors are measured against it.
+    pub floor: f64,
+    pub report: NoiseReport,
 }
 
 /// Path traces `camera`'s view of `scene` at `time`. `engine` must already
@@ -108,11 +121,12 @@ pub fn render(
     let shade = |ray, _, rng: &mut Pcg32, rays: &mut u64| {
         [integrator.radiance(ray, rng, rays), Vec3::ZERO, Vec3::ZERO]
     };
-    rays += shade_tiles(camera, settings, &mut image, &shade, Progress::Tiles).0;
-    let (w, h) = (camera.width, camera.height);
+    let (traced, _, sampling) =
+        shade_tiles(camera, settings, None, &mut image, &shade, Progress::Tiles);
+    rays += traced;
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
-        samples: w as u64 * h as u64 * settings.spp as u64,
+        samples: sampling.samples.iter().map(|&n| n as u64).sum(),
         rays,
     };
     Ok((image, stats))
@@ -142,16 +156,21 @@ pub enum Progress<'a> {
     Pixels(&'a ProgressBar),
 }
 
-/// Shades every pixel sample of `camera`'s view in tiles handed out by
-/// rayon, with progress, writing mean radiances into `image`; returns the
-/// number of rays traced and the mean parts of each pixel (see [`Shade`]).
+/// Shades `camera`'s view in tiles handed out by rayon, with progress,
+/// writing mean radiances into `image`: every pixel takes `settings.spp`
+/// samples, then, with a noise `target`, the pixels above it take more in
+/// rounds (see [`noise`]). Returns the number of rays traced, the mean
+/// parts of each pixel (see [`Shade`]) and how the pixels were sampled.
+/// Which samples a round takes follows from the samples before it alone,
+/// and those from (seed, pixel, sample index): never from the threads.
 fn shade_tiles(
     camera: &Camera,
     settings: &RenderSettings,
+    target: Option<&NoiseTarget>,
     image: &mut RangeImage,
     shade: &Shade,
     progress: Progress,
-) -> (u64, Vec<[Vec3; 2]>) {
+) -> (u64, Vec<[Vec3; 2]>, Sampled) {
     let (w, h) = (camera.width, camera.height);
     let tiles: Vec<(u32, u32)> = (0..h.div_ceil(TILE))
         .flat_map(|ty| (0..w.div_ceil(TILE)).map(move |tx| (tx * TILE, ty * TILE)))
@@ -165,33 +184,89 @@ fn shade_tiles(
         ),
         Progress::Pixels(_) => None,
     };
-    let results: Vec<TileResult> = tiles
-        .par_iter()
-        .map(|&(x0, y0)| {
-            let r = render_tile(shade, camera, settings, x0, y0);
+    let mut rays = 0;
+    let mut parts = vec![[Vec3::ZERO; 2]; image.len()];
+    let mut moments = vec![noise::Moments::default(); image.len()];
+    // The count each pixel is to reach in the round about to run.
+    let mut wanted = vec![settings.spp; image.len()];
+    let mut floor = None;
+    for round in 0.. {
+        let active: Vec<(u32, u32)> = tiles
+            .iter()
+            .copied()
+            .filter(|&(x0, y0)| {
+                (y0..(y0 + TILE).min(h)).any(|y| {
+                    (x0..(x0 + TILE).min(w)).any(|x| {
+                        let i = (y * w + x) as usize;
+                        wanted[i] > moments[i].n
+                    })
+                })
+            })
+            .collect();
+        if active.is_empty() {
+            break;
+        }
+        if round > 0 {
+            // Later rounds lengthen the bar by what they add.
             match (&own, progress) {
-                (Some(bar), _) => bar.inc(1),
-                (None, Progress::Pixels(bar)) => bar.inc(r.radiance.len() as u64),
+                (Some(bar), _) => bar.inc_length(active.len() as u64),
+                (None, Progress::Pixels(bar)) => bar.inc_length(
+                    (0..image.len())
+                        .filter(|&i| wanted[i] > moments[i].n)
+                        .count() as u64,
+                ),
                 (None, Progress::Tiles) => {}
             }
-            r
-        })
-        .collect();
+        }
+        for chunk in active.chunks(TILES_PER_MERGE) {
+            let results: Vec<TileResult> = chunk
+                .par_iter()
+                .map(|&(x0, y0)| {
+                    let r = render_tile(shade, camera, settings, (x0, y0), &moments, &wanted);
+                    match (&own, progress) {
+                        (Some(bar), _) => bar.inc(1),
+                        (None, Progress::Pixels(bar)) => bar.inc(r.pixels.len() as u64),
+                        (None, Progress::Tiles) => {}
+                    }
+                    r
+                })
+                .collect();
+            for t in results {
+                rays += t.rays;
+                for (i, sum, batch) in t.pixels {
+                    let had = moments[i].n as f64;
+                    let total = had + batch.n as f64;
+                    let mean =
+                        |old: Vec3, sum: DVec3| ((old.as_dvec3() * had + sum) / total).as_vec3();
+                    image.radiance[i] = mean(image.radiance[i], sum[0]);
+                    parts[i] = [mean(parts[i][0], sum[1]), mean(parts[i][1], sum[2])];
+                    moments[i] = moments[i].merge(&batch);
+                }
+            }
+        }
+        let floor = *floor.get_or_insert_with(|| noise::floor(&moments, &image.object_id));
+        let Some(target) = target else { break };
+        let errors = noise::relative_errors(w, &moments, floor);
+        for (i, (m, e)) in moments.iter().zip(&errors).enumerate() {
+            if let Some(next) = noise::next_count(m.n, *e, target) {
+                wanted[i] = next;
+            }
+        }
+    }
     if let Some(bar) = own {
         bar.finish_and_clear();
     }
-
-    let mut rays = 0;
-    let mut parts = vec![[Vec3::ZERO; 2]; image.len()];
-    for t in results {
-        rays += t.rays;
-        for (k, (&c, &p)) in t.radiance.iter().zip(&t.parts).enumerate() {
-            let (x, y) = (t.x0 + k as u32 % t.w, t.y0 + k as u32 / t.w);
-            image.radiance[(y * w + x) as usize] = c;
-            parts[(y * w + x) as usize] = p;
-        }
-    }
-    (rays, parts)
+    let floor = floor.unwrap_or(0.0);
+    let error = noise::relative_errors(w, &moments, floor);
+    let samples: Vec<u32> = moments.iter().map(|m| m.n).collect();
+    let report = NoiseReport::new(&image.object_id, &samples, &error, target);
+    let sampled = Sampled {
+        samples,
+        error,
+        floor,
+        report,
+    };
+    (rays, parts, sampled)
 }
 
 /// Where in its pixel each sample looks: the first `n²` samples
@@ -206,6 +281,12 @@ struct PixelStrata {
 }
 
 impl PixelStrata {
+    /// For samples past the grid, which take their numbers as they come.
+    const NONE: PixelStrata = PixelStrata {
+        n: 0,
+        cells: Vec::new(),
+    };
+
     fn new(spp: u32, seed: u64, pixel: u64) -> Self {
         let n = spp.isqrt();
         let mut cells: Vec<u32> = (0..n * n).collect();
@@ -232,27 +313,41 @@ impl PixelStrata {
     }
 }
 
+/// Takes the samples from each pixel's count so far (`moments`) up to
+/// `wanted` in the tile whose corner is `(x0, y0)`.
 fn render_tile(
     shade: &Shade,
     camera: &Camera,
     settings: &RenderSettings,
-    x0: u32,
-    y0: u32,
+    (x0, y0): (u32, u32),
+    moments: &[noise::Moments],
+    wanted: &[u32],
 ) -> TileResult {
     let x1 = (x0 + TILE).min(camera.width);
     let y1 = (y0 + TILE).min(camera.height);
-    let mut radiance = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
-    let mut parts = Vec::with_capacity(radiance.capacity());
+    let mut pixels = Vec::new();
     let mut rays = 0;
+    let grid = settings.spp.isqrt().pow(2);
     for y in y0..y1 {
         for x in x0..x1 {
-            let pixel = y as u64 * camera.width as u64 + x as u64;
-            let strata = PixelStrata::new(settings.spp, settings.seed, pixel);
+            let i = (y * camera.width + x) as usize;
+            let (from, to) = (moments[i].n, wanted[i]);
+            if from >= to {
+                continue;
+            }
+            let pixel = i as u64;
+            let strata = if from < grid {
+                PixelStrata::new(settings.spp, settings.seed, pixel)
+            } else {
+                PixelStrata::NONE
+            };
             let mut sum = [DVec3::ZERO; 3];
-            for s in 0..settings.spp {
+            let mut batch = noise::Batch::default();
+            for s in from..to {
                 let mut rng = Pcg32::for_sample(settings.seed, pixel, s as u64);
                 let (dx, dy) = strata.offset(s, rng.next_f32(), rng.next_f32());
                 let Some(ray) = camera.ray(x as f32 + dx, y as f32 + dy) else {
+                    batch.push(0.0);
                     continue;
                 };
                 let l = shade(ray, s, &mut rng, &mut rays);
@@ -265,21 +360,15 @@ fn render_tile(
                     for (sum, c) in sum.iter_mut().zip(l) {
                         *sum += c.as_dvec3();
                     }
+                    batch.push(noise::luminance(l[0]));
+                } else {
+                    batch.push(0.0);
                 }
             }
-            let mean = sum.map(|s| (s / settings.spp as f64).as_vec3());
-            radiance.push(mean[0]);
-            parts.push([mean[1], mean[2]]);
+            pixels.push((i, sum, batch));
         }
     }
-    TileResult {
-        x0,
-        y0,
-        w: x1 - x0,
-        radiance,
-        parts,
-        rays,
-    }
+    TileResult { pixels, rays }
 }
 
 /// Fills distance, ids and normals from each pixel's centre ray; returns the

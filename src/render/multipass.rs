@@ -32,7 +32,8 @@ use glam::{Affine3A, Vec3};
 use super::hit::SurfaceHit;
 use super::integrator::{power_heuristic, Integrator};
 use super::lights::Lights;
-use super::{first_hits, shade_tiles, Progress, RenderSettings, RenderStats};
+use super::noise::NoiseTarget;
+use super::{first_hits, shade_tiles, Progress, RenderSettings, RenderStats, Sampled};
 use crate::accel::RayEngine;
 use crate::bsdf::{Frame, Lobes};
 use crate::camera::Camera;
@@ -71,6 +72,7 @@ pub struct Layers {
     /// when a shadow moves, and what synthesis re-shades.
     pub diffuse_direct: Vec<Vec3>,
     pub stats: RenderStats,
+    pub sampling: Sampled,
 }
 
 /// Renders `camera`'s view at `time`; `engine` holds the scene posed at
@@ -91,13 +93,17 @@ pub fn render(
         time,
         settings,
         Indirect::Records(indirect),
+        None,
         Progress::Tiles,
     )?;
     Ok((out.image, out.stats))
 }
 
 /// [`render`] with the diffuse indirect part kept apart, indirect light
-/// from either source, and progress reported where the caller says.
+/// from either source, pixels sampled to a noise `target` if one is given
+/// (`settings.spp` is then the least a pixel takes), and progress reported
+/// where the caller says.
+#[allow(clippy::too_many_arguments)]
 pub fn render_layers(
     scene: &Scene,
     engine: &dyn RayEngine,
@@ -105,9 +111,23 @@ pub fn render_layers(
     time: f32,
     settings: &RenderSettings,
     indirect: Indirect,
+    target: Option<NoiseTarget>,
     progress: Progress,
 ) -> Result<Layers> {
     ensure!(settings.spp > 0, "multipass render: spp must be at least 1");
+    if let Some(t) = &target {
+        ensure!(
+            t.relative.is_finite() && t.relative > 0.0,
+            "multipass render: noise target {} is not a positive relative error",
+            t.relative
+        );
+        ensure!(
+            t.max_spp >= settings.spp,
+            "multipass render: sample limit {} is below the minimum spp {}",
+            t.max_spp,
+            settings.spp
+        );
+    }
     ensure!(
         scene.objects.len() < u32::MAX as usize,
         "multipass render: too many objects"
@@ -136,7 +156,7 @@ pub fn render_layers(
         camera: *camera,
         time,
         scene: format!(
-            "{} t={time} multipass ({}, indirect {}) spp={} max_depth={} seed={}",
+            "{} t={time} multipass ({}, indirect {}) spp={}{} max_depth={} seed={}",
             scene.source.display(),
             engine.name(),
             match indirect {
@@ -144,15 +164,20 @@ pub fn render_layers(
                 Indirect::Traced => "traced",
             },
             settings.spp,
+            target.map_or(String::new(), |t| format!(
+                " noise={} max_spp={}",
+                t.relative, t.max_spp
+            )),
             shader.max_depth,
             settings.seed
         ),
     };
     let mut image = RangeImage::empty(meta);
     let mut rays = first_hits(engine, camera, &mut image);
-    let (traced, parts) = shade_tiles(
+    let (traced, parts, sampling) = shade_tiles(
         camera,
         settings,
+        target.as_ref(),
         &mut image,
         &|ray, s, rng, rays| shader.radiance(ray, s, rng, rays),
         progress,
@@ -160,7 +185,7 @@ pub fn render_layers(
     rays += traced;
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
-        samples: camera.width as u64 * camera.height as u64 * settings.spp as u64,
+        samples: sampling.samples.iter().map(|&n| n as u64).sum(),
         rays,
     };
     let (indirect, diffuse_direct) = parts.into_iter().map(|[i, d]| (i, d)).unzip();
@@ -169,6 +194,7 @@ pub fn render_layers(
         indirect,
         diffuse_direct,
         stats,
+        sampling,
     })
 }
 

@@ -352,6 +352,7 @@ int main(int argc, char **argv) {
     rw_bake_options options;
     EXPECT(rw_bake_options_default(&options), RW_OK, NULL);
     CHECK(options.struct_size == sizeof options && options.spp == 16 && options.quality == 0.5f);
+    CHECK(options.noise == 0.02f && options.max_spp == 0);
     char fresh[1024];
     snprintf(fresh, sizeof fresh, "%s/never-made", work);
     rw_bake_options o = options;
@@ -363,6 +364,14 @@ int main(int argc, char **argv) {
     o = options;
     o.indirect = 9;
     EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "indirect");
+    o = options;
+    o.noise = -0.5f;
+    EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "options->noise -0.5");
+    o.noise = NAN;
+    EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "options->noise NaN");
+    o = options;
+    o.max_spp = options.spp - 1;
+    EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "options->max_spp 15");
     o = options;
     o.shard_index = 3;
     o.shard_count = 2;

@@ -171,7 +171,9 @@ impl CommonArgs {
     }
 
     /// The bake settings of quality `q`: full-sphere bases with indirect
-    /// light from radiosity records, as `rangewalk bake` makes by default.
+    /// light from radiosity records, as `rangewalk bake` makes by default,
+    /// but sampled flat at `--base-spp` (not to a noise target), so that
+    /// the experiments' sample counts are the ones their reports state.
     pub fn bake_settings(&self, q: Quality, base_size: u32) -> bake::Settings {
         bake::Settings {
             quality: q.get(),

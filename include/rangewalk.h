@@ -233,9 +233,10 @@ typedef struct {
   // Light samples per pixel when re-shading, where the light changed
   // since the base times, 1 to 256 (each is three shadow rays a pixel).
   uint32_t reshade_samples;
-  // Rays per side of a pixel at or beside a light or a silhouette, 0 to
-  // 32 (32² rays resolve a pixel's share of a light to a thousandth); 0
-  // keeps lights and silhouettes as reprojected.
+  // Rays per side of a pixel at or beside a light or a silhouette
+  // against the sky, 0 to 32 (32² rays resolve a pixel's share of a
+  // light to a thousandth); 0 keeps lights and silhouettes as
+  // reprojected.
   uint32_t light_rays;
   uint64_t seed;
   // Memory for the bases each synthesizing thread keeps, in MiB.

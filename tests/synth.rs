@@ -1274,6 +1274,9 @@ fn silhouettes_carry_a_renders_antialiasing() {
             &edge,
         ),
     );
+    eprintln!(
+        "silhouettes against the sky: synthesized {synthesized:.4}, 16-spp render {rendered:.4}"
+    );
     assert!(
         synthesized <= rendered,
         "at silhouettes against the sky: synthesized {synthesized:.4}, a 16-spp render (the bases' samples) {rendered:.4}"

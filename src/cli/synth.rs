@@ -52,9 +52,9 @@ pub struct SynthOptions {
     /// Light samples per pixel when re-shading.
     #[arg(long, default_value_t = Options::default().reshade_samples)]
     pub reshade_samples: u32,
-    /// Rays per side of a pixel at or beside a light or a silhouette,
-    /// traced to find what fraction of it each surface covers; 0 keeps
-    /// lights and silhouettes as reprojected.
+    /// Rays per side of a pixel at or beside a light or a silhouette
+    /// against the sky, traced to find what fraction of it each surface
+    /// covers; 0 keeps lights and silhouettes as reprojected.
     #[arg(long, default_value_t = Options::default().light_rays)]
     pub light_rays: u32,
     #[arg(long, default_value_t = Options::default().seed)]
@@ -206,7 +206,7 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
         );
     }
     println!(
-        "{}: {}x{} at t = {} s from {} base image(s) ({}): {:.1} ms synthesis + {:.3} s reading bases; {} hole pixel(s), {} filled, {} open to the sky, {} pixel(s) at lights and silhouettes traced{}",
+        "{}: {}x{} at t = {} s from {} base image(s) ({}): {:.1} ms synthesis + {:.3} s reading bases; {} hole pixel(s), {} filled, {} open to the sky, {} pixel(s) at lights and silhouettes against the sky traced{}",
         args.out.display(),
         frame.width,
         frame.height,

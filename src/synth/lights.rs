@@ -37,7 +37,7 @@ const FACE_COS: f32 = 0.9;
 const REACH: i64 = 2;
 
 /// Replaces the radiance of every frame pixel at or beside a light or a
-/// silhouette by the mean of `side²` rays through it; `engine` holds the
+/// silhouette against the sky by the mean of `side²` rays through it; `engine` holds the
 /// scene posed at `t`. Rays through the pixel's four corners go first: an
 /// outline that crosses the pixel crosses its sides, so where they all
 /// meet the surface the pixel shows, and its value is that surface's alone
@@ -62,6 +62,8 @@ pub fn trace(
     let emissive = emissive(scene);
     let emits = |id: u32| emissive.get(id as usize).copied().unwrap_or(false);
     let near = whole_frame(&emissive, ids, w, h);
+    let sky: Vec<bool> = ids.par_iter().map(|&id| id == NO_HIT).collect();
+    let beside_sky = dilate(&dilate(&sky, w, h), w, h);
     let shading = SurfaceShading::new(scene, engine, t);
     let camera = image.meta.camera;
     let around = Around {
@@ -73,13 +75,16 @@ pub fn trace(
         h: h as i64,
     };
     // Rows of the pixels to trace (those at or beside a light or a change
-    // of surface), and the columns in each.
+    // of surface within two pixels of the sky), and the columns in each.
     let first_row = 0;
     let rows: Vec<Vec<usize>> = (0..h)
         .into_par_iter()
         .map(|y| {
             (0..w)
-                .filter(|&x| near.lit(y * w + x) || !near.interior(y * w + x))
+                .filter(|&x| {
+                    let k = y * w + x;
+                    near.lit(k) || (!near.interior(k) && beside_sky[k])
+                })
                 .collect()
         })
         .collect();
@@ -165,7 +170,8 @@ pub fn trace(
                 let one = c.iter().all(|&o| o == c[0]);
                 let y = first_row + r;
                 let k = y * w + x;
-                if one && c[0] == ids[k] && !near.lit(k) && !mixed.is_some_and(|m| m[k]) {
+                let mixes = mixed.is_some_and(|m| m[k]);
+                if one && c[0] == ids[k] && !near.lit(k) && !mixes {
                     continue;
                 }
                 let offsets: &[(f32, f32)] = if one { &centre } else { &full };

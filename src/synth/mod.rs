@@ -105,7 +105,7 @@ pub struct Options {
     /// it did not).
     pub reshade_samples: u32,
     /// Rays per side of a pixel at or beside a light or a silhouette
-    /// ([`lights`]); 0: none.
+    /// against the sky ([`lights`]); 0: none.
     pub light_rays: u32,
     pub seed: u64,
     /// Side of the grid of subpixels each frame pixel is synthesized as
@@ -250,7 +250,8 @@ pub struct FrameStats {
     pub sky: usize,
     /// Mirror pixels whose reflection no base showed (kept as projected).
     pub mirror_misses: usize,
-    /// Pixels at or beside lights and silhouettes traced again.
+    /// Pixels at or beside lights and silhouettes against the sky traced
+    /// again.
     pub light_pixels: usize,
     /// Whether re-shading corrected diffuse indirect light by the bake's
     /// radiosity records (it cannot where the bake traced it, and need not

@@ -1158,6 +1158,22 @@ fn between_base_times_the_moving_boxes_are_as_right_as_at_a_base_time() {
     );
 }
 
+/// The Cornell box baked at its view space's ends at t = 0 and 1 (512²
+/// sphere bases of `spp` samples), and its `main` camera at 128²: half way
+/// the boxes have moved by 112 mm and 15 degrees.
+fn boxes_between_ends(spp: u32) -> (Scene, tempfile::TempDir, bake::Bake, Camera) {
+    let scene = load(&scene_path("cornell-box"));
+    let dir = tempfile::tempdir().unwrap();
+    let baked = bake_into(
+        &scene,
+        dir.path(),
+        &settings(512, spp),
+        ends(&scene, &[0.0, 1.0]),
+    );
+    let camera = scene.camera("main").unwrap().perspective(128, 128).unwrap();
+    (scene, dir, baked, camera)
+}
+
 /// No frame pixel a pixel away from every silhouette shows another
 /// surface than a render's. Objects that move apart tear the surface
 /// between them: splats bridged neighbours of different objects close in
@@ -1166,15 +1182,7 @@ fn between_base_times_the_moving_boxes_are_as_right_as_at_a_base_time() {
 /// direction alone, claimed gaps in the tall box's samples as black dots.
 #[test]
 fn objects_that_move_apart_keep_their_own_pixels() {
-    let scene = load(&scene_path("cornell-box"));
-    let dir = tempfile::tempdir().unwrap();
-    let baked = bake_into(
-        &scene,
-        dir.path(),
-        &settings(512, 4),
-        ends(&scene, &[0.0, 1.0]),
-    );
-    let camera = scene.camera("main").unwrap().perspective(128, 128).unwrap();
+    let (scene, _dir, baked, camera) = boxes_between_ends(4);
     let t = 0.5;
     let reference = path_traced(&scene, &camera, t, 1);
     let (w, h) = (128usize, 128usize);
@@ -1218,15 +1226,7 @@ fn objects_that_move_apart_keep_their_own_pixels() {
 /// than a render taking the bases' own samples a pixel.
 #[test]
 fn silhouettes_carry_a_renders_antialiasing() {
-    let scene = load(&scene_path("cornell-box"));
-    let dir = tempfile::tempdir().unwrap();
-    let baked = bake_into(
-        &scene,
-        dir.path(),
-        &settings(512, 16),
-        ends(&scene, &[0.0, 1.0]),
-    );
-    let camera = scene.camera("main").unwrap().perspective(128, 128).unwrap();
+    let (scene, _dir, baked, camera) = boxes_between_ends(16);
     let t = 0.5;
     let reference = path_traced(&scene, &camera, t, 1024);
     let (w, h) = (128i64, 128i64);

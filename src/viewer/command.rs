@@ -59,6 +59,9 @@ impl Moving {
                 filter: Filter::Cover,
                 blend: Blend::Nearest,
                 light_rays: given.light_rays.min(4),
+                // Re-shading's first few samples a pixel only; where they
+                // find the light changed, the still frame takes the rest.
+                reshade_samples: given.reshade_samples.min(4),
                 ..given
             },
             _ => given,
@@ -559,3 +562,30 @@ const RECORDING: Contents = Contents {
     what: "a recording",
     owns: |name, is_dir| !is_dir && numbered(name, "frame-", &["png"]),
 };
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::TimeInterp;
+
+    /// A draft keeps its cost bounded whatever was asked: re-shading a
+    /// moved shadow with 64 samples a pixel cost more than the rest of a
+    /// draft; the still frame is made as asked.
+    #[test]
+    fn a_draft_bounds_its_rays_and_a_still_frame_takes_the_options_given() {
+        let given = Options {
+            time_interp: TimeInterp::Reshade,
+            reshade_samples: 64,
+            light_rays: 8,
+            ..Options::default()
+        };
+        let draft = Moving::Draft.options(given, true);
+        assert_eq!((draft.reshade_samples, draft.light_rays), (4, 4));
+        assert_eq!(
+            (draft.supersample, draft.time_interp),
+            (1, TimeInterp::Reshade)
+        );
+        assert_eq!(Moving::Draft.options(given, false), given);
+        assert_eq!(Moving::Full.options(given, true), given);
+    }
+}

@@ -508,6 +508,7 @@ fn motion_compensation_and_reshading_remove_the_errors_they_are_for() {
         &reference,
         &shadows,
     );
+    eprintln!("where shadows move: reshade {r:.4}, a 16-spp render {rendered:.4}");
     assert!(
         r <= rendered,
         "where shadows move: reshade {r:.4}, a 16-spp render (the bases' samples) {rendered:.4}"

@@ -713,17 +713,11 @@ impl<'a> Synthesizer<'a> {
             for &time in &times {
                 then.push(plane(&format!("base time {time}"))?);
             }
-            for (i, time) in std::iter::once(t).chain(times.iter().copied()).enumerate() {
-                let engine = &*self.engine_at(time)?;
-                let out = if i == 0 { &mut now } else { &mut then[i - 1] };
-                reshade::direct_at(
-                    scene, engine, t, time, &pixels, w, cam, find, opts.seed, None, out,
-                )?;
-            }
-            if opts.reshade_samples > find {
-                let changed = reshade::changed(&now, &then, w, k as usize);
-                stats.reshaded = changed.iter().filter(|&&c| c).count();
-                for (i, time) in std::iter::once(t).chain(times.iter().copied()).enumerate() {
+            // The frame's time first, then every base time.
+            let all_times: Vec<f32> = std::iter::once(t).chain(times.iter().copied()).collect();
+            let (mut samples, mut only) = (find, None::<Vec<bool>>);
+            loop {
+                for (i, &time) in all_times.iter().enumerate() {
                     let engine = &*self.engine_at(time)?;
                     let out = if i == 0 { &mut now } else { &mut then[i - 1] };
                     reshade::direct_at(
@@ -734,20 +728,22 @@ impl<'a> Synthesizer<'a> {
                         &pixels,
                         w,
                         cam,
-                        opts.reshade_samples,
+                        samples,
                         opts.seed,
-                        Some(&changed),
+                        only.as_deref(),
                         out,
                     )?;
                 }
+                if only.is_some() || opts.reshade_samples <= find {
+                    break;
+                }
+                let changed = reshade::changed(&now, &then, w, k as usize);
+                stats.reshaded = changed.iter().filter(|&&c| c).count();
+                (samples, only) = (opts.reshade_samples, Some(changed));
             }
             let records = self.records()?;
             if let Some(r) = &records {
-                r.prepare(
-                    &std::iter::once(t)
-                        .chain(times.iter().copied())
-                        .collect::<Vec<_>>(),
-                )?;
+                r.prepare(&all_times)?;
             }
             stats.indirect_corrected = records.is_some();
             let engine = &*self.engine_at(t)?;

@@ -257,17 +257,17 @@ pub fn apply(
     // base times share their indirect correction: records vary over many
     // pixels, and looking them up for every subpixel cost more than all
     // the rest of re-shading.
-    let k = block.max(1);
+    let block = block.max(1);
     let misses = image
         .radiance
-        .par_chunks_mut(w * k)
-        .zip(pixels.par_chunks(w * k))
+        .par_chunks_mut(w * block)
+        .zip(pixels.par_chunks(w * block))
         .enumerate()
         .map(|(band, (rows, accs))| -> Result<usize> {
             let mut misses = 0;
-            let mut shared: Vec<Option<(u32, u32, f32, Vec3)>> = vec![None; w.div_ceil(k)];
+            let mut shared: Vec<Option<(u32, u32, f32, Vec3)>> = vec![None; w.div_ceil(block)];
             for (dy, (row, acc)) in rows.chunks_mut(w).zip(accs.chunks(w)).enumerate() {
-                let y = band * k + dy;
+                let y = band * block + dy;
                 for (x, a) in acc.iter().enumerate() {
                     let Some(mut sp) = surface_point(a, cam, None) else {
                         continue;
@@ -310,13 +310,13 @@ pub fn apply(
                         }
                         continue;
                     }
-                    let k_px = y * w + x;
+                    let k = y * w + x;
                     let tau = a.alpha / a.w;
                     let (i, j, f) = mean_time(times, tau);
-                    let before = then[i][k_px].lerp(then[j][k_px], f);
-                    let mut l = a.radiance / a.w + now[k_px] - before;
+                    let before = then[i][k].lerp(then[j][k], f);
+                    let mut l = a.radiance / a.w + now[k] - before;
                     if let Some(r) = records {
-                        let slot = &mut shared[x / k];
+                        let slot = &mut shared[x / block];
                         let correction = match *slot {
                             Some((o, p, t0, c))
                                 if o == sp.object

@@ -771,7 +771,7 @@ fn render_image(
         Some(c) => Indirect::Records(c),
         None => Indirect::Traced,
     };
-    let out = multipass::render_layers(
+    let out = multipass::render_base(
         scene,
         &*engine,
         &camera,

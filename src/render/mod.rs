@@ -16,7 +16,7 @@ use rayon::prelude::*;
 
 use crate::accel::RayEngine;
 use crate::camera::Camera;
-use crate::image::{RangeImage, RangeMeta};
+use crate::image::{RangeImage, RangeMeta, NO_HIT};
 use crate::ray::Ray;
 use crate::scene::Scene;
 
@@ -61,8 +61,28 @@ const TILES_PER_MERGE: usize = 1024;
 /// this round, its index and the sums and luminance moments of its new
 /// samples (see [`Shade`]).
 struct TileResult {
-    pixels: Vec<(usize, [DVec3; 3], noise::Batch)>,
+    pixels: Vec<Shaded>,
     rays: u64,
+}
+
+/// One pixel's new samples: the sums and moments of those it counts, how
+/// many it drew, and the sums of all of them.
+struct Shaded {
+    i: usize,
+    sum: [DVec3; 3],
+    batch: noise::Batch,
+    drew: u32,
+    all: [DVec3; 3],
+}
+
+/// Each pixel's samples so far, and what the round wants of it.
+struct Counts<'a> {
+    moments: &'a [noise::Moments],
+    wanted: &'a [u32],
+    drawn: &'a [u32],
+    most: u32,
+    /// Each pixel's centre object, where only samples that meet it count.
+    own: Option<&'a [u32]>,
 }
 
 /// How a render sampled its pixels: every pixel's sample count and
@@ -119,10 +139,20 @@ pub fn render(
     let mut image = RangeImage::empty(meta);
     let mut rays = first_hits(engine, camera, &mut image);
     let shade = |ray, _, rng: &mut Pcg32, rays: &mut u64| {
-        [integrator.radiance(ray, rng, rays), Vec3::ZERO, Vec3::ZERO]
+        (
+            [integrator.radiance(ray, rng, rays), Vec3::ZERO, Vec3::ZERO],
+            NO_HIT,
+        )
     };
-    let (traced, _, sampling) =
-        shade_tiles(camera, settings, None, &mut image, &shade, Progress::Tiles);
+    let (traced, _, sampling) = shade_tiles(
+        camera,
+        settings,
+        None,
+        Coverage::Pixel,
+        &mut image,
+        &shade,
+        Progress::Tiles,
+    );
     rays += traced;
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
@@ -146,7 +176,22 @@ pub fn sky(scene: &Scene, t: f32) -> impl Fn(Vec3) -> Vec3 + Sync {
 /// diffuse indirect light at the surfaces seen, and the part that is direct
 /// light reflected by the diffuse lobe of the surface seen first (both zero
 /// where a renderer does not tell them apart).
-type Shade<'a> = dyn Fn(Ray, u32, &mut Pcg32, &mut u64) -> [Vec3; 3] + Sync + 'a;
+/// A sample's radiance (with the parts a multipass render keeps apart) and
+/// the object its camera ray met first (`NO_HIT` for none).
+type Shade<'a> = dyn Fn(Ray, u32, &mut Pcg32, &mut u64) -> ([Vec3; 3], u32) + Sync + 'a;
+
+/// What a pixel's value averages: everything its samples see (a render's
+/// antialiased pixel), or only the samples that meet the surface its centre
+/// ray meets. A base image is of the second kind: its pixels are samples of
+/// surfaces that synthesis moves one object at a time, and the share of a
+/// neighbouring object's light in an edge pixel would move with the wrong
+/// object (and, where a frame sees the surface larger than the base did,
+/// spread over it). The frame's own footprints make its edges' mixture.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Coverage {
+    Pixel,
+    CentreObject,
+}
 
 /// Where a render reports its progress: its own bar over tiles, or a bar
 /// owned by a larger job that counts pixels.
@@ -167,6 +212,7 @@ fn shade_tiles(
     camera: &Camera,
     settings: &RenderSettings,
     target: Option<&NoiseTarget>,
+    coverage: Coverage,
     image: &mut RangeImage,
     shade: &Shade,
     progress: Progress,
@@ -187,8 +233,13 @@ fn shade_tiles(
     let mut rays = 0;
     let mut parts = vec![[Vec3::ZERO; 2]; image.len()];
     let mut moments = vec![noise::Moments::default(); image.len()];
-    // The count each pixel is to reach in the round about to run.
+    // The count each pixel is to reach in the round about to run, and the
+    // samples it has drawn (more than it counts where samples off its
+    // centre's object are left out); no pixel draws more than `most`.
     let mut wanted = vec![settings.spp; image.len()];
+    let mut drawn = vec![0u32; image.len()];
+    let most = target.map_or(settings.spp, |t| t.max_spp.max(settings.spp));
+    let centre_objects = (coverage == Coverage::CentreObject).then(|| image.object_id.clone());
     let mut floor = None;
     for round in 0.. {
         let active: Vec<(u32, u32)> = tiles
@@ -198,7 +249,7 @@ fn shade_tiles(
                 (y0..(y0 + TILE).min(h)).any(|y| {
                     (x0..(x0 + TILE).min(w)).any(|x| {
                         let i = (y * w + x) as usize;
-                        wanted[i] > moments[i].n
+                        wanted[i] > moments[i].n && drawn[i] < most
                     })
                 })
             })
@@ -212,7 +263,7 @@ fn shade_tiles(
                 (Some(bar), _) => bar.inc_length(active.len() as u64),
                 (None, Progress::Pixels(bar)) => bar.inc_length(
                     (0..image.len())
-                        .filter(|&i| wanted[i] > moments[i].n)
+                        .filter(|&i| wanted[i] > moments[i].n && drawn[i] < most)
                         .count() as u64,
                 ),
                 (None, Progress::Tiles) => {}
@@ -222,7 +273,14 @@ fn shade_tiles(
             let results: Vec<TileResult> = chunk
                 .par_iter()
                 .map(|&(x0, y0)| {
-                    let r = render_tile(shade, camera, settings, (x0, y0), &moments, &wanted);
+                    let counts = Counts {
+                        moments: &moments,
+                        wanted: &wanted,
+                        drawn: &drawn,
+                        most,
+                        own: centre_objects.as_deref(),
+                    };
+                    let r = render_tile(shade, camera, settings, (x0, y0), &counts);
                     match (&own, progress) {
                         (Some(bar), _) => bar.inc(1),
                         (None, Progress::Pixels(bar)) => bar.inc(r.pixels.len() as u64),
@@ -233,7 +291,24 @@ fn shade_tiles(
                 .collect();
             for t in results {
                 rays += t.rays;
-                for (i, sum, batch) in t.pixels {
+                for Shaded {
+                    i,
+                    sum,
+                    batch,
+                    drew,
+                    all,
+                } in t.pixels
+                {
+                    drawn[i] += drew;
+                    if moments[i].n + batch.n == 0 {
+                        // No sample met the centre's object (a sliver
+                        // narrower than the samples' spacing): the pixel
+                        // keeps what its samples saw.
+                        let n = drew.max(1) as f64;
+                        image.radiance[i] = (all[0] / n).as_vec3();
+                        parts[i] = [(all[1] / n).as_vec3(), (all[2] / n).as_vec3()];
+                        continue;
+                    }
                     let had = moments[i].n as f64;
                     let total = had + batch.n as f64;
                     let mean =
@@ -320,8 +395,7 @@ fn render_tile(
     camera: &Camera,
     settings: &RenderSettings,
     (x0, y0): (u32, u32),
-    moments: &[noise::Moments],
-    wanted: &[u32],
+    counts: &Counts,
 ) -> TileResult {
     let x1 = (x0 + TILE).min(camera.width);
     let y1 = (y0 + TILE).min(camera.height);
@@ -331,10 +405,13 @@ fn render_tile(
     for y in y0..y1 {
         for x in x0..x1 {
             let i = (y * camera.width + x) as usize;
-            let (from, to) = (moments[i].n, wanted[i]);
-            if from >= to {
+            let needed = counts.wanted[i].saturating_sub(counts.moments[i].n);
+            let from = counts.drawn[i];
+            let to = (from + needed).min(counts.most.max(from));
+            if needed == 0 || from >= to {
                 continue;
             }
+            let own = counts.own.map(|o| o[i]);
             let pixel = i as u64;
             let strata = if from < grid {
                 PixelStrata::new(settings.spp, settings.seed, pixel)
@@ -342,6 +419,7 @@ fn render_tile(
                 PixelStrata::NONE
             };
             let mut sum = [DVec3::ZERO; 3];
+            let mut all = [DVec3::ZERO; 3];
             let mut batch = noise::Batch::default();
             for s in from..to {
                 let mut rng = Pcg32::for_sample(settings.seed, pixel, s as u64);
@@ -350,13 +428,22 @@ fn render_tile(
                     batch.push(0.0);
                     continue;
                 };
-                let l = shade(ray, s, &mut rng, &mut rays);
+                let (l, object) = shade(ray, s, &mut rng, &mut rays);
                 debug_assert!(
                     l[0].is_finite(),
                     "pixel ({x}, {y}) sample {s}: radiance {}",
                     l[0]
                 );
-                if l.iter().all(|c| c.is_finite()) {
+                let finite = l.iter().all(|c| c.is_finite());
+                if finite {
+                    for (all, c) in all.iter_mut().zip(l) {
+                        *all += c.as_dvec3();
+                    }
+                }
+                if own.is_some_and(|o| o != object) {
+                    continue;
+                }
+                if finite {
                     for (sum, c) in sum.iter_mut().zip(l) {
                         *sum += c.as_dvec3();
                     }
@@ -365,7 +452,13 @@ fn render_tile(
                     batch.push(0.0);
                 }
             }
-            pixels.push((i, sum, batch));
+            pixels.push(Shaded {
+                i,
+                sum,
+                batch,
+                drew: to - from,
+                all,
+            });
         }
     }
     TileResult { pixels, rays }

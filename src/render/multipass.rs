@@ -33,11 +33,11 @@ use super::hit::SurfaceHit;
 use super::integrator::{power_heuristic, Integrator};
 use super::lights::Lights;
 use super::noise::NoiseTarget;
-use super::{first_hits, shade_tiles, Progress, RenderSettings, RenderStats, Sampled};
+use super::{first_hits, shade_tiles, Coverage, Progress, RenderSettings, RenderStats, Sampled};
 use crate::accel::RayEngine;
 use crate::bsdf::{Frame, Lobes};
 use crate::camera::Camera;
-use crate::image::{RangeImage, RangeMeta};
+use crate::image::{RangeImage, RangeMeta, NO_HIT};
 use crate::radiosity::lookup::IrradianceCache;
 use crate::ray::{offset_origin, Ray};
 use crate::rng::Pcg32;
@@ -114,6 +114,50 @@ pub fn render_layers(
     target: Option<NoiseTarget>,
     progress: Progress,
 ) -> Result<Layers> {
+    let view = (camera, time);
+    layers(
+        scene,
+        engine,
+        view,
+        settings,
+        indirect,
+        target,
+        Coverage::Pixel,
+        progress,
+    )
+}
+
+/// [`render_layers`] for a base image: each pixel averages only the samples
+/// that meet its centre ray's object ([`Coverage::CentreObject`]).
+#[allow(clippy::too_many_arguments)]
+pub fn render_base(
+    scene: &Scene,
+    engine: &dyn RayEngine,
+    camera: &Camera,
+    time: f32,
+    settings: &RenderSettings,
+    indirect: Indirect,
+    target: Option<NoiseTarget>,
+    progress: Progress,
+) -> Result<Layers> {
+    let view = (camera, time);
+    let coverage = Coverage::CentreObject;
+    layers(
+        scene, engine, view, settings, indirect, target, coverage, progress,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn layers(
+    scene: &Scene,
+    engine: &dyn RayEngine,
+    (camera, time): (&Camera, f32),
+    settings: &RenderSettings,
+    indirect: Indirect,
+    target: Option<NoiseTarget>,
+    coverage: Coverage,
+    progress: Progress,
+) -> Result<Layers> {
     ensure!(settings.spp > 0, "multipass render: spp must be at least 1");
     if let Some(t) = &target {
         ensure!(
@@ -178,6 +222,7 @@ pub fn render_layers(
         camera,
         settings,
         target.as_ref(),
+        coverage,
         &mut image,
         &|ray, s, rng, rays| shader.radiance(ray, s, rng, rays),
         progress,
@@ -231,7 +276,16 @@ enum Came {
 impl Multipass<'_> {
     /// One sample's radiance, the diffuse indirect part of it seen directly
     /// or in mirrors, and the first hit's diffuse-lobe direct light.
-    fn radiance(&self, mut ray: Ray, sample: u32, rng: &mut Pcg32, rays: &mut u64) -> [Vec3; 3] {
+    /// The sample's radiance and its parts, and the object its camera ray
+    /// meets (`NO_HIT` for none).
+    fn radiance(
+        &self,
+        mut ray: Ray,
+        sample: u32,
+        rng: &mut Pcg32,
+        rays: &mut u64,
+    ) -> ([Vec3; 3], u32) {
+        let mut first = NO_HIT;
         let mut l = Vec3::ZERO;
         let mut l_indirect = Vec3::ZERO;
         let mut l_diffuse_direct = Vec3::ZERO;
@@ -241,11 +295,15 @@ impl Multipass<'_> {
         let mut sharp = true;
         let mut segments = 1u32;
         if self.max_depth == 0 {
-            return [l, l_indirect, l_diffuse_direct];
+            return ([l, l_indirect, l_diffuse_direct], first);
         }
         loop {
             *rays += 1;
-            let Some(hit) = self.engine.intersect(&ray) else {
+            let hit = self.engine.intersect(&ray);
+            if segments == 1 {
+                first = hit.as_ref().map_or(NO_HIT, |h| h.object);
+            }
+            let Some(hit) = hit else {
                 if let Some((le, pdf_light)) = self.lights.sun_along(ray.dir.normalize()) {
                     let w = match came {
                         Came::Only => 1.0,
@@ -343,7 +401,7 @@ impl Multipass<'_> {
             let wi = frame.to_world(s.wi);
             ray = Ray::new(offset_origin(p, ng, wi), wi);
         }
-        [l, l_indirect, l_diffuse_direct]
+        ([l, l_indirect, l_diffuse_direct], first)
     }
 
     /// Uniform numbers for a light sample; at the camera's first hit the

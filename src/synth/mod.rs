@@ -151,6 +151,11 @@ pub const MAX_LIGHT_RAYS: u32 = 32;
 /// longer what synthesis is for.
 pub const MAX_RESHADE_SAMPLES: u32 = 256;
 
+/// The most base views a frame projects: each gives a pass per base time
+/// it takes (two at most), and a z-buffer entry names its pass in
+/// [`warp::MAX_PASSES`].
+pub const MAX_BASES: usize = warp::MAX_PASSES / 2;
+
 /// The most subpixels a frame is synthesized at: the pixels a range image
 /// may hold ([`crate::image::MAX_PIXELS`], 8192²). A subpixel's z-buffer
 /// entry alone takes 48 bytes, so this is about 3.2 GB before the frame.
@@ -166,6 +171,12 @@ impl Options {
             self.bases > 0,
             "{} 0: synthesis needs at least 1 base view",
             name("bases")
+        );
+        ensure!(
+            self.bases <= MAX_BASES,
+            "{} {} must lie in 1..={MAX_BASES}",
+            name("bases"),
+            self.bases
         );
         ensure!(
             self.tolerance > 0.0 && self.tolerance < 1.0,
@@ -245,6 +256,8 @@ pub struct FrameStats {
     pub holes: usize,
     /// Pixels filled by background fill.
     pub filled: usize,
+    /// Cracks in surfaces repaired ([`fill::cracks`]).
+    pub cracks: usize,
     /// Holes a ray found open to the sky, given its radiance (with
     /// background fill).
     pub sky: usize,
@@ -581,14 +594,15 @@ impl<'a> Synthesizer<'a> {
         };
         // The holes a buffer has left after the sky's; background fill
         // fills some of them.
-        let finish = |buffer: &mut Vec<Accum>, holes: usize, stats: &mut FrameStats| {
-            if background && holes > 0 {
-                let filled = fill::background(buffer, w, h, opts.fill_reach);
-                stats.filled += filled;
-                return holes - filled;
-            }
-            holes
-        };
+        let finish =
+            |buffer: &mut Vec<Accum>, holes: usize, seen: &[fill::Seen], stats: &mut FrameStats| {
+                if background && holes > 0 {
+                    let filled = fill::background(buffer, w, h, opts.fill_reach, seen);
+                    stats.filled += filled;
+                    return holes - filled;
+                }
+                holes
+            };
         let [mut first, mut second] = std::mem::take(&mut self.buffers);
         let frame = if k == 1 {
             format!("a {w}x{h} frame")
@@ -627,10 +641,11 @@ impl<'a> Synthesizer<'a> {
                 let warped = warp::warp(&target, passes, &settings, buffer);
                 stats.hidden += warped.hidden;
                 holes[k] = warped.holes;
+                stats.cracks += self.repair_cracks(camera, t, buffer, opts.tolerance)?;
                 if background {
-                    let sky = self.open_to_sky(camera, t, buffer, holes[k])?;
+                    let (sky, seen) = self.open_to_sky(camera, t, buffer, holes[k])?;
                     stats.sky += sky;
-                    holes[k] = finish(buffer, holes[k] - sky, &mut stats);
+                    holes[k] = finish(buffer, holes[k] - sky, &seen, &mut stats);
                 }
             }
             first
@@ -681,10 +696,11 @@ impl<'a> Synthesizer<'a> {
             let warped = warp::warp(&target, &passes, &settings, &mut first);
             stats.hidden += warped.hidden;
             stats.holes = warped.holes;
+            stats.cracks += self.repair_cracks(camera, t, &mut first, opts.tolerance)?;
             if background {
-                let sky = self.open_to_sky(camera, t, &mut first, stats.holes)?;
+                let (sky, seen) = self.open_to_sky(camera, t, &mut first, stats.holes)?;
                 stats.sky += sky;
-                stats.holes = finish(&mut first, stats.holes - sky, &mut stats);
+                stats.holes = finish(&mut first, stats.holes - sky, &seen, &mut stats);
             }
             first
         };
@@ -776,18 +792,36 @@ impl<'a> Synthesizer<'a> {
         Ok((Some(image), stats))
     }
 
+    /// Repairs the cracks of `buffer`, a frame of `camera` ([`fill::cracks`]),
+    /// building the ray engine only where one may need it.
+    fn repair_cracks(
+        &mut self,
+        camera: &Camera,
+        t: f32,
+        buffer: &mut [Accum],
+        tolerance: f32,
+    ) -> Result<usize> {
+        let found = fill::cracks(buffer, camera.width, camera.height, tolerance);
+        if found.is_empty() {
+            return Ok(0);
+        }
+        let engine = &*self.engine_at(t)?;
+        Ok(fill::repair_cracks(engine, camera, buffer, &found))
+    }
+
     /// Gives the holes of `buffer` (a frame of `camera` with `holes` of
     /// them) that are open to the sky its radiance ([`fill::sky`]),
-    /// building the ray engine only where a hole needs it; returns how many.
+    /// building the ray engine only where a hole needs it; returns how many,
+    /// and what the other holes' rays met.
     fn open_to_sky(
         &mut self,
         camera: &Camera,
         t: f32,
         buffer: &mut [Accum],
         holes: usize,
-    ) -> Result<usize> {
+    ) -> Result<(usize, Vec<fill::Seen>)> {
         if holes == 0 {
-            return Ok(0);
+            return Ok((0, Vec::new()));
         }
         let sky = crate::render::sky(self.scene, t);
         let engine = &*self.engine_at(t)?;

@@ -67,16 +67,38 @@ struct Hot {
     /// The heaviest sample's weight and base pixel.
     best: f32,
     pixel: u32,
-    /// The heaviest sample's pass, shifted left by one, and in the lowest
-    /// bit whether a sample's footprint covers the pixel's centre: such a
-    /// sample decides the pixel's surface, and samples whose footprints
-    /// only overlap the pixel's edge join it only within the tolerance.
+    /// In the lowest bit, whether a sample's footprint covers the pixel's
+    /// centre: such a sample decides the pixel's surface, and samples whose
+    /// footprints only overlap the pixel's edge join it only within the
+    /// tolerance. Above it the heaviest sample's pass ([`PASS_BITS`]) and
+    /// its object's number (the rest of the bits of it).
     tag: u32,
+}
+
+/// Bits of a [`Hot`]'s tag that name the pass.
+const PASS_BITS: u32 = 12;
+/// Most passes one frame may project.
+pub const MAX_PASSES: usize = 1 << PASS_BITS;
+
+/// A sample's tag: its pass and (as many low bits of it as fit) its object.
+fn tag(pass: u32, object: u32) -> u32 {
+    debug_assert!((pass as usize) < MAX_PASSES);
+    (object << (PASS_BITS + 1)) | (pass << 1)
 }
 
 impl Hot {
     fn covered(&self) -> bool {
         self.tag & 1 != 0
+    }
+
+    fn pass(&self) -> usize {
+        ((self.tag >> 1) & (MAX_PASSES as u32 - 1)) as usize
+    }
+
+    /// Whether a sample tagged `tag` shows the object this pixel holds
+    /// (objects whose numbers agree in the tag's bits count as one).
+    fn same_object(&self, tag: u32) -> bool {
+        (self.tag ^ tag) >> (PASS_BITS + 1) == 0
     }
 }
 
@@ -487,6 +509,10 @@ pub fn warp(
 ) -> Warped {
     let (w, h) = (target.camera.width, target.camera.height);
     debug_assert_eq!(buffer.len(), (w * h) as usize);
+    assert!(
+        passes.len() <= MAX_PASSES,
+        "at most {MAX_PASSES} passes a frame"
+    );
     // Sixteen bands: with eight, one core waited on the other for a tenth
     // of the frame (a band is a unit of work, and they differ in cost).
     let band = (h / 16).max(16);
@@ -770,7 +796,7 @@ fn resolve(passes: &[Pass], hot: &[Hot], alpha: &[f32], rows: &mut [Accum]) -> u
             holes += 1;
             continue;
         }
-        let pass = &passes[(h.tag >> 1) as usize];
+        let pass = &passes[h.pass()];
         let base = pass.base;
         let k = h.pixel as usize;
         let (p, object) = (base.points[k], base.object[k]);
@@ -856,6 +882,26 @@ impl Band<'_> {
             settings.blend,
         );
     }
+}
+
+/// Weight of a base pixel that mixes the light of objects that have moved
+/// apart: small enough that any other sample outweighs it.
+const TORN_WEIGHT: f32 = 1e-3;
+
+/// Whether two motions (none: the object stays) move points alike.
+fn same_motion(a: Option<Affine3A>, b: Option<Affine3A>) -> bool {
+    let a = a.unwrap_or(Affine3A::IDENTITY);
+    let b = b.unwrap_or(Affine3A::IDENTITY);
+    a.abs_diff_eq(b, 1e-5 * (1.0 + a.translation.abs().max_element()))
+}
+
+/// Which of a base pixel's neighbours along a row or column lie on its
+/// surface.
+#[derive(Clone, Copy)]
+enum Hands {
+    Both,
+    After,
+    Before,
 }
 
 /// Projects the tile's pixels (and a ring of their neighbours, which give
@@ -948,6 +994,27 @@ fn prepare_tile(
                 || (a.object == b.object
                     && (a.primitive == b.primitive || (a.z - b.z).abs() <= 2.0 * eps * a.z)))
     };
+    // A base pixel beside another object's holds some of that object's
+    // light (its samples spread over the pixel). Where the two have moved
+    // apart since the base's time, that light would be carried to the wrong
+    // place, a line along the pixel's object (the short box's lit top drawn
+    // across the tall box behind it), so such a pixel only counts where
+    // nothing else covers the frame pixel.
+    let motion = |o: u32| pass.moves.get(o as usize).copied().flatten();
+    let torn = |x: u32, y: u32, o: u32| {
+        let own = motion(o);
+        [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)]
+            .iter()
+            .any(|&(dx, dy)| {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                if nx < xs as i64 || ny < ys as i64 || nx >= x_end as i64 || ny >= y_end as i64 {
+                    return false;
+                }
+                let n = scratch[((ny as u32 - ys) * sw + (nx as u32 - xs)) as usize];
+                let other = n.map_or(SKY, |n| n.object);
+                other != o && !same_motion(own, if other == SKY { None } else { motion(other) })
+            })
+    };
     for y in tile.y0..(tile.y0 + TILE).min(bh) {
         for x in tile.x0..(tile.x0 + TILE).min(bw) {
             let li = ((y - ys) * sw + (x - xs)) as usize;
@@ -959,9 +1026,12 @@ fn prepare_tile(
             }
             // Offset and depth change to an agreeing neighbour, `d` pixels
             // along the base's rows (`row`) or columns, after the pixel or
-            // else (negated) before it.
-            let neighbour = |row: bool| -> Option<(Vec2, f32)> {
-                let step = |d: i64| -> Option<(Vec2, f32)> {
+            // else (negated) before it, and whether the neighbours on both
+            // hands agree.
+            let neighbour = |row: bool| -> (Option<(Vec2, f32)>, Hands) {
+                // The offset to the neighbour `d` pixels on where it agrees;
+                // and whether it shows the pixel's object at all.
+                let step = |d: i64| -> (Option<(Vec2, f32)>, bool) {
                     let (nx, ny) = if row {
                         (x as i64 + d, y as i64)
                     } else {
@@ -969,37 +1039,81 @@ fn prepare_tile(
                     };
                     if nx < xs as i64 || ny < ys as i64 || nx >= x_end as i64 || ny >= y_end as i64
                     {
-                        return None;
+                        return (None, false);
                     }
-                    let n = scratch[((ny as u32 - ys) * sw + (nx as u32 - xs)) as usize]?;
-                    agrees(&s, &n).then_some(((n.px - s.px) * d as f32, (n.z - s.z) * d as f32))
+                    let Some(n) = scratch[((ny as u32 - ys) * sw + (nx as u32 - xs)) as usize]
+                    else {
+                        return (None, false);
+                    };
+                    let offset = ((n.px - s.px) * d as f32, (n.z - s.z) * d as f32);
+                    (agrees(&s, &n).then_some(offset), n.object == s.object)
                 };
-                step(1).or_else(|| step(-1))
+                // Past an edge of its own object (another face of a box)
+                // the surface goes on to the edge: only another object's
+                // pixel beyond makes the pixel the last of its surface.
+                match (step(1), step(-1)) {
+                    ((Some(after), _), (Some(_), _) | (None, true)) => (Some(after), Hands::Both),
+                    ((Some(after), _), (None, false)) => (Some(after), Hands::After),
+                    ((None, true), (before, _)) => (before, Hands::Both),
+                    ((None, false), (before, _)) => (before, Hands::Before),
+                }
             };
-            let (n1, n2) = (neighbour(true), neighbour(false));
+            let ((n1, hands1), (n2, hands2)) = (neighbour(true), neighbour(false));
+            let mut centre = s.px;
             let sides = if settings.splat {
                 let short = |e: Vec2| e.abs().max_element() <= MAX_SPLAT;
-                // The footprint is centred on the pixel's projection, so that a
-                // base pixel projected into its own camera covers exactly its
-                // own pixel. A side with no agreeing neighbour on either hand
-                // (a sliver one base pixel wide) is the other side turned a
-                // quarter, or, for a lone pixel, the base pixel's own size:
-                // a frame pixel there would widen every thin foreground object
-                // over the gaps beside it.
-                match (
+                // A base pixel's own size in the frame, as if it faced the
+                // base: how far its surface can reach past its last sample.
+                let natural = || {
+                    let side = if s.sky() {
+                        target.pixel_side(base, base.camera.position + base.points[k], 1.0)
+                    } else {
+                        target.pixel_side(base, base.points[k], s.z)
+                    };
+                    side.min(MAX_SPLAT)
+                };
+                let (e1, e2) = (
                     n1.map(|n| n.0).filter(|e| short(*e)),
                     n2.map(|n| n.0).filter(|e| short(*e)),
-                ) {
-                    (Some(a), Some(b)) => [a, b],
-                    (Some(a), None) => [a, a.perp()],
-                    (None, Some(b)) => [-b.perp(), b],
+                );
+                // The footprint is centred on the pixel's projection, so that
+                // a base pixel projected into its own camera covers exactly
+                // its own pixel. Where only one hand's neighbour agrees, the
+                // pixel is the last of its surface: on the other hand its
+                // footprint reaches no farther than the base pixel's own
+                // size, for a surface the base saw at a grazing angle spans
+                // many frame pixels a base pixel, and half of that past its
+                // edge would lay it over what lies beyond (a line of the
+                // short box's top drawn across the wall behind).
+                let mut one_handed = |e: Vec2, hands: Hands| -> Vec2 {
+                    let reach = || (0.5 * natural() / e.length().max(1e-6)).min(0.5);
+                    // The neighbour is at +e (after) or −e (before); the
+                    // footprint spans [−reach, ½] or [−½, reach] of e.
+                    let (lo, hi) = match hands {
+                        Hands::Both => return e,
+                        Hands::After => (-reach(), 0.5),
+                        Hands::Before => (-0.5, reach()),
+                    };
+                    centre += e * (0.5 * (lo + hi));
+                    e * (hi - lo)
+                };
+                // A side with no agreeing neighbour on either hand (a sliver
+                // one base pixel wide) is the other side turned a quarter, no
+                // longer than the base pixel's own size, or, for a lone
+                // pixel, that size: a frame pixel there would widen every
+                // thin foreground object over the gaps beside it.
+                match (e1, e2) {
+                    (Some(a), Some(b)) => [one_handed(a, hands1), one_handed(b, hands2)],
+                    (Some(a), None) => {
+                        let a = one_handed(a, hands1);
+                        [a, a.perp().normalize_or_zero() * a.length().min(natural())]
+                    }
+                    (None, Some(b)) => {
+                        let b = one_handed(b, hands2);
+                        [-b.perp().normalize_or_zero() * b.length().min(natural()), b]
+                    }
                     (None, None) => {
-                        let side = if s.sky() {
-                            target.pixel_side(base, base.camera.position + base.points[k], 1.0)
-                        } else {
-                            target.pixel_side(base, base.points[k], s.z)
-                        };
-                        let side = side.min(MAX_SPLAT);
+                        let side = natural();
                         [Vec2::X * side, Vec2::Y * side]
                     }
                 }
@@ -1018,6 +1132,9 @@ fn prepare_tile(
             };
             let mut radiance = layer(rad, x, y, base.scale);
             let (mut in_time, mut alpha) = (pass.weight, pass.alpha);
+            if torn(x, y, s.object) {
+                in_time *= TORN_WEIGHT;
+            }
             if let (
                 true,
                 Some(Twin::Carries {
@@ -1038,8 +1155,8 @@ fn prepare_tile(
                 }
             }
             out.push(Splat {
-                px: s.px,
-                z: s.z,
+                px: centre,
+                z: s.z + grad.dot(centre - s.px),
                 grad,
                 sides,
                 point: if s.sky() {
@@ -1126,7 +1243,15 @@ fn deposit_splats(
         // Where the pixels it could decide already hold nearer or equal
         // samples of earlier bases, nearest-first blending keeps them: the
         // rest of the sample's work would change nothing.
-        if cull && hidden_sample(s, footprint.as_ref(), (fx, fy), band, eps) {
+        let named = tag(
+            index,
+            if s.sky {
+                SKY
+            } else {
+                base.object[s.pixel as usize]
+            },
+        );
+        if cull && hidden_sample(s, footprint.as_ref(), (fx, fy), band, eps, named) {
             band.hidden += 1;
             continue;
         }
@@ -1148,7 +1273,7 @@ fn deposit_splats(
             radiance: s.radiance,
             alpha: s.alpha,
             pixel: s.pixel,
-            tag: index << 1,
+            tag: named,
         };
         let mut deposit = |px: i64, py: i64, area: f32, covers: bool| {
             band.deposit(s, &sample, (px, py), area, covers, settings);
@@ -1201,8 +1326,9 @@ fn deposit_splats(
 
 /// Whether a sample's covering deposits (the pixels whose centres its
 /// footprint's bounds hold, and the pixel under it, both in the band) would
-/// all meet pixels of the band covered by samples it is not nearer than by
-/// the tolerance: under nearest-first blending it then
+/// all meet pixels of the band covered by samples it is not nearer than (by
+/// the tolerance, where they show its object, `tag`'s): under nearest-first
+/// blending it then
 /// changes nothing (overlapping deposits never change a covered pixel).
 /// Its depth over the footprint is bounded by the footprint's corners,
 /// between which the depth is linear.
@@ -1212,6 +1338,7 @@ fn hidden_sample(
     (fx, fy): (i64, i64),
     band: &Band,
     eps: f32,
+    tag: u32,
 ) -> bool {
     let clamp = |z: f32| {
         if s.sky {
@@ -1239,7 +1366,7 @@ fn hidden_sample(
         let row = (py - band.y0 as i64) as usize * band.width as usize;
         band.hot[row + cols.0 as usize..=row + cols.1 as usize]
             .iter()
-            .all(|a| a.covered() && low >= a.z * (1.0 - eps))
+            .all(|a| a.covered() && low >= a.z * if a.same_object(tag) { 1.0 - eps } else { 1.0 })
     })
 }
 
@@ -1297,8 +1424,7 @@ struct Sample {
     weight: f32,
     radiance: Vec3,
     alpha: f32,
-    /// The base pixel and its pass (shifted left by one) as [`Hot`] names
-    /// them.
+    /// The base pixel, and its pass and object, as [`Hot`] names them.
     pixel: u32,
     tag: u32,
 }
@@ -1324,8 +1450,12 @@ impl Sample {
         blend: Blend,
     ) {
         let w = self.weight * area;
-        let nearer = z < a.z * (1.0 - eps);
-        let within = !nearer && z <= a.z * (1.0 + eps);
+        // Samples of one object within the tolerance are one surface; of
+        // two objects (a box standing on the floor, close in depth along
+        // the line where they meet) the nearer one is in front.
+        let same = a.same_object(self.tag);
+        let nearer = z < if same { a.z * (1.0 - eps) } else { a.z };
+        let within = same && !nearer && z <= a.z * (1.0 + eps);
         let replace = a.z == 0.0
             || match (covers, a.covered()) {
                 // Nearest first, a covering sample still decides a pixel

@@ -650,6 +650,85 @@ fn buried_probe(h: &Hierarchy, ray: &Ray, leaf: u32) -> Option<Ray> {
     Some(Ray::segment(end, d, l))
 }
 
+/// Points per leaf side and probes per point for [`open_shares`].
+const OPEN_POINTS: u32 = 16;
+const OPEN_PROBES: u32 = 4;
+
+/// The share of each leaf side (`[front, back]`) that is not buried, and
+/// the probes traced. A point is buried when three of its four probes
+/// (cosine-distributed directions, [`CONTACT`] times the leaf's radius
+/// long) are blocked: closed in on nearly every side, as behind a chair
+/// rail. A point in a room's corner is blocked on one side only, and a
+/// floor under a chair sees past it within that reach.
+///
+/// A leaf's irradiance is its area average, in which a buried part counts
+/// dark. That is right for the light the leaf reflects, but a record
+/// stands for the surface one sees: a band of records along every rail
+/// came out too dark by the buried share. The records take the irradiance
+/// over the open part instead.
+pub fn open_shares(h: &Hierarchy, leaves: &[u32], engine: &dyn RayEngine) -> (Vec<[f32; 2]>, u64) {
+    let (np, nd) = (OPEN_POINTS as usize, OPEN_PROBES as usize);
+    let shares = leaves
+        .par_chunks(64)
+        .flat_map_iter(|chunk| {
+            let mut probes = Vec::with_capacity(chunk.len() * 2 * np * nd);
+            for &l in chunk {
+                let node = h.node(l);
+                let [p0, p1, p2] = node.tri;
+                let reach = CONTACT * node.radius;
+                for side in 0..2u32 {
+                    let m = if side == 0 { node.normal } else { -node.normal };
+                    let (t, b) = orthonormal(m);
+                    for j in 0..OPEN_POINTS {
+                        let hash = |k: u32, c: u32| unit(hash3(l, j * OPEN_PROBES + k, c + 4 * side));
+                        let (mut u, mut v) = ((j as f32 + hash(0, 0)) / np as f32, hash(0, 1));
+                        if u + v > 1.0 {
+                            (u, v) = (1.0 - u, 1.0 - v);
+                        }
+                        let p = p0 + (p1 - p0) * u + (p2 - p0) * v;
+                        for k in 0..OPEN_PROBES {
+                            // Stratified in azimuth so that the four look
+                            // four ways.
+                            let phi = std::f32::consts::TAU * (k as f32 + hash(k, 2)) / nd as f32;
+                            let r2 = hash(k, 3);
+                            let r = r2.sqrt();
+                            let d = t * (r * phi.cos()) + b * (r * phi.sin()) + m * (1.0 - r2).sqrt();
+                            probes.push(Ray::segment(offset_origin(p, m, d), d, reach));
+                        }
+                    }
+                }
+            }
+            let mut blocked = vec![false; probes.len()];
+            engine.occluded_batch(&probes, &mut blocked);
+            blocked
+                .chunks_exact(2 * np * nd)
+                .map(|leaf| {
+                    [0, 1].map(|side| {
+                        let buried = leaf[side * np * nd..(side + 1) * np * nd]
+                            .chunks_exact(nd)
+                            .filter(|point| point.iter().filter(|&&b| b).count() * 4 >= 3 * nd)
+                            .count();
+                        // A wholly buried side keeps its (dark) average.
+                        if buried == np {
+                            1.0
+                        } else {
+                            1.0 - buried as f32 / np as f32
+                        }
+                    })
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    (shares, (leaves.len() * 2 * np * nd) as u64)
+}
+
+/// Two unit vectors that make a right-handed frame with unit `n`.
+fn orthonormal(n: Vec3) -> (Vec3, Vec3) {
+    let t = if n.x.abs() > 0.5 { Vec3::Y } else { Vec3::X };
+    let t = n.cross(t).normalize();
+    (t, n.cross(t))
+}
+
 /// Where the line `o + t d` is inside the sphere, as `[t_in, t_out]`.
 fn sphere_span(o: Vec3, d: Vec3, center: Vec3, radius: f32) -> Option<[f32; 2]> {
     let (a, oc) = (d.length_squared(), o - center);

@@ -214,14 +214,7 @@ pub fn solve(
             solved
                 .check(params.oracle_tolerance)
                 .with_context(|| format!("at t = {time}"))?;
-            let mut indirect = op.apply(&solved.x);
-            let (open, probes) = links::open_shares(&h, &op.leaves, engine);
-            stats.shadow_rays += probes;
-            for (e, o) in indirect.iter_mut().zip(open) {
-                for side in 0..2 {
-                    e[side] /= o[side];
-                }
-            }
+            let indirect = op.apply(&solved.x);
             let index = leaf_index(&h, &op.leaves);
             let (ind, dir) =
                 output::records(simplified, &h, |l| index[l as usize], &indirect, &direct);

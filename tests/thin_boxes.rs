@@ -169,12 +169,11 @@ fn records_and_traced(scene: &Scene) -> [(f64, f64); 2] {
 
 /// The rails shadow almost nothing in a traced bounce (they are as white
 /// as the walls), but the solver's elements are far larger than the rails:
-/// the wall behind a rail counted dark twice (in an element's average and
-/// again by the rays blocked there) and the records beside the rail took
-/// the buried strip's darkness into their average. The records' indirect
-/// light then fell 4.7% with the rails where the traced bounce's fell
-/// 0.4%. The goal is the issue's 2% on the rails' cost, plus three
-/// standard errors of the four means.
+/// when the wall behind a rail counted dark twice (in an element's average
+/// and again by the shadow rays blocked there), the records' indirect
+/// light fell 4.7% with the rails where the traced bounce's fell 0.3%.
+/// The goal is issue 47's 2% on the rails' cost, plus three standard
+/// errors of the four means.
 #[test]
 fn chair_rails_cost_the_records_what_they_cost_a_traced_bounce() {
     let dir = tempfile::tempdir().unwrap();

@@ -102,7 +102,7 @@ fn room(dir: &Path, rails: bool) -> Scene {
     );
     std::fs::write(dir.join("room.obj"), obj).unwrap();
     std::fs::write(dir.join("scene.toml"), toml).unwrap();
-    Scene::load(&dir.join("scene.toml")).unwrap()
+    Scene::load(dir.join("scene.toml")).unwrap()
 }
 
 /// The mean luminance of the indirect layer (records or one traced

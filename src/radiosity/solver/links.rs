@@ -643,11 +643,8 @@ fn buried_probe(h: &Hierarchy, ray: &Ray, leaf: u32) -> Option<Ray> {
     let end = ray.origin + ray.dir * ray.tmax;
     let len = ray.dir.length() * ray.tmax;
     let l = (CONTACT * h.node(leaf).radius).min(0.5 * len);
-    if !(l > 0.0) {
-        return None;
-    }
-    let d = -ray.dir / ray.dir.length();
-    Some(Ray::segment(end, d, l))
+    // Also refuses NaN lengths from a degenerate ray.
+    (l > 0.0).then(|| Ray::segment(end, -ray.dir / ray.dir.length(), l))
 }
 
 /// Where the line `o + t d` is inside the sphere, as `[t_in, t_out]`.

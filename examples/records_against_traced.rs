@@ -2,7 +2,8 @@
 //! camera of it with the multipass renderer twice, once with the records'
 //! indirect irradiance and once with one traced diffuse bounce in its
 //! place (the comparison `tests/multipass.rs` checks the studio with), and
-//! prints the mean luminance of both images and of their indirect layers.
+//! prints the mean luminance of both images and of their indirect layers,
+//! and of both images over the pixels darker than the traced one's mean.
 //! Noise aside, the layers differ only by the records' error, so a
 //! change to a scene that moves one and not the other points at the solver.
 //!
@@ -71,6 +72,7 @@ fn main() -> Result<()> {
     };
     let mean = |v: &[Vec3]| v.iter().map(|&c| luminance(c)).sum::<f64>() / v.len() as f64;
     let mut means = Vec::new();
+    let mut images = Vec::new();
     for indirect in [
         multipass::Indirect::Records(&cache),
         multipass::Indirect::Traced,
@@ -85,8 +87,26 @@ fn main() -> Result<()> {
             None,
             render::Progress::Tiles,
         )?;
+        images.push(
+            out.image
+                .radiance
+                .iter()
+                .map(|&c| luminance(c))
+                .collect::<Vec<f64>>(),
+        );
         means.push((mean(&out.image.radiance), mean(&out.indirect)));
     }
+    // The pixels darker than the traced image's mean (away from the
+    // lights), where the indirect light is most of what one sees.
+    let [ref recs, ref traced_img] = images[..] else {
+        unreachable!("two renders");
+    };
+    let cut = traced_img.iter().sum::<f64>() / traced_img.len() as f64;
+    let dark: Vec<usize> = (0..traced_img.len())
+        .filter(|&i| traced_img[i] < cut)
+        .collect();
+    let over = |v: &[f64]| dark.iter().map(|&i| v[i]).sum::<f64>() / dark.len().max(1) as f64;
+    let (dark_records, dark_traced) = (over(recs), over(traced_img));
     let [(records, records_indirect), (traced, traced_indirect)] = means[..] else {
         unreachable!("two renders");
     };
@@ -95,6 +115,13 @@ fn main() -> Result<()> {
          traced bounce: image {traced:.4}, indirect layer {traced_indirect:.4}; \
          indirect layer {:+.1}%",
         100.0 * (records_indirect / traced_indirect - 1.0)
+    );
+    println!(
+        "image {:+.1}%; the {} pixels darker than the traced image's mean: records {dark_records:.4}, \
+         traced bounce {dark_traced:.4}, {:+.1}%",
+        100.0 * (records / traced - 1.0),
+        dark.len(),
+        100.0 * (dark_records / dark_traced - 1.0)
     );
     Ok(())
 }

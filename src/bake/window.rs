@@ -358,9 +358,9 @@ pub fn describe(windows: &[BaseWindow], size: u32) -> String {
         return format!("base windows: every base keeps its whole {size}x{size} image");
     }
     format!(
-        "base windows: {partial} of {} bases keep only the pixels that may see the scene, \
-         {:.1}% of {size}x{size} each on average; left out: {:.1}% of the base pixels, \
-         which see only sky (frames trace it)",
+        "base windows: the images of {partial} of {} views hold only the pixels that may see \
+         the scene, {:.1}% of {size}x{size} each on average; left out: {:.1}% of the base \
+         pixels, which see only sky (frames trace it)",
         windows.len(),
         100.0 * kept as f64 / whole as f64,
         100.0 * (whole - kept) as f64 / whole as f64

@@ -36,8 +36,8 @@ const BLOCK: u32 = 8;
 
 // A window cornered on the block grid cuts the same tiles and blocks as
 // the whole image: its frames are the whole image's, bit for bit.
-const _: () = assert!(crate::bake::window::ALIGN % (TILE * BLOCK) == 0);
-const _: () = assert!(crate::bake::window::STEP % TILE == 0);
+const _: () = assert!(crate::bake::window::ALIGN.is_multiple_of(TILE * BLOCK));
+const _: () = assert!(crate::bake::window::STEP.is_multiple_of(TILE));
 
 /// Point, object id, primitive id (4 bytes each, the point 12) and
 /// radiance (3 half floats).

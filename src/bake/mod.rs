@@ -626,6 +626,12 @@ fn start_or_resume(
         }
         let positions: Vec<Vec3> = plan.views.iter().map(|v| v.position).collect();
         let space = window::viewpoints(scene, &positions);
+        // Every view's times: a frame blends the sky of bases of several
+        // views, and each must hold the directions the others may see
+        // geometry in at theirs.
+        let mut times: Vec<f32> = plan.views.iter().flat_map(|v| v.times.clone()).collect();
+        times.sort_by(f32::total_cmp);
+        times.dedup();
         let windows = plan
             .views
             .iter()
@@ -634,7 +640,7 @@ fn start_or_resume(
                     return Ok(BaseWindow::whole(settings.size));
                 }
                 let camera = base_camera(scene, v.position, settings)?;
-                Ok(window::find(scene, &camera, &v.times, space))
+                Ok(window::find(scene, &camera, &times, space))
             })
             .collect::<Result<Vec<_>>>()?;
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;

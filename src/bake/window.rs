@@ -9,8 +9,8 @@
 //! does: a frame's pixel that sees the sky takes it from every base that
 //! holds that direction (the sky is at infinity, the same direction from
 //! everywhere), so a base that dropped a direction another holds would
-//! change the blend. Bases of view `v` are only ever used at the times the
-//! plan gives `v`, and what they see then lies inside each object's
+//! change the blend. Bases are only ever used at the times the plan
+//! gives their views, and what they see then lies inside each object's
 //! bounds posed at those times; seen from anywhere in the view space's
 //! bounds `V`, a box `B` covers the directions the box `B − V` covers seen
 //! from the origin. So every tile of [`TILE`]² pixels whose directions (a
@@ -281,8 +281,8 @@ pub fn viewpoints(scene: &Scene, views: &[Vec3]) -> (Vec3, Vec3) {
 
 /// The window of `camera`'s projection (the whole image's camera) that
 /// holds every direction in which a viewpoint in `space` sees the scene at
-/// `times`, padded and aligned as the module says. `camera` lies in
-/// `space`.
+/// `times` (the plan's, of every view), padded and aligned as the module
+/// says. `camera` lies in `space`.
 pub fn find(scene: &Scene, camera: &Camera, times: &[f32], space: (Vec3, Vec3)) -> BaseWindow {
     let (w, h) = camera.full_size();
     let seen = Seen::of(scene, times, space);

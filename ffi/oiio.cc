@@ -201,6 +201,16 @@ void write_image(rust::Str path_str, rust::Str format, const Raster &image) {
     if (nch == 0)
         fail(path, "an image needs at least one channel", "");
     OIIO::ImageSpec spec(int(image.width), int(image.height), int(nch), OIIO::TypeFloat);
+    // The data window inside a display window whose corner is the origin.
+    if (image.full_width > uint64_t(INT32_MAX) || image.full_height > uint64_t(INT32_MAX) ||
+        image.x < INT32_MIN || image.x > INT32_MAX || image.y < INT32_MIN || image.y > INT32_MAX)
+        fail(path, "window does not fit an image header", "");
+    spec.x = int(image.x);
+    spec.y = int(image.y);
+    spec.full_x = 0;
+    spec.full_y = 0;
+    spec.full_width = int(image.full_width);
+    spec.full_height = int(image.full_height);
     spec.channelnames.clear();
     for (const Channel &c : image.channels) {
         if (c.data.size() != n)
@@ -283,6 +293,10 @@ Decoded read_image(rust::Str path_str, uint64_t max_pixels) {
     Decoded d;
     d.raster.width = uint32_t(spec.width);
     d.raster.height = uint32_t(spec.height);
+    d.raster.x = int64_t(spec.x) - spec.full_x;
+    d.raster.y = int64_t(spec.y) - spec.full_y;
+    d.raster.full_width = uint64_t(std::max(spec.full_width, 0));
+    d.raster.full_height = uint64_t(std::max(spec.full_height, 0));
     d.raster.integer_samples = !spec.format.is_floating_point();
     d.words = std::make_unique<Words>();
     d.words->pixels = n;

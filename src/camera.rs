@@ -5,6 +5,12 @@
 //!
 //! Pixel coordinates are continuous: pixel `(i, j)` covers `[i, i+1) x [j, j+1)`,
 //! `x` grows to the right and `y` grows downwards in the image.
+//!
+//! A camera may hold only a [`Window`] of its projection's pixels (a
+//! partial base image: the rest sees nothing a frame needs). Its `width`
+//! and `height` are then the window's, and its pixel coordinates count
+//! from the window's corner; the projection itself keeps the full size, so
+//! a pixel covers the same directions whether or not the image is cropped.
 
 use anyhow::{ensure, Result};
 use glam::{Vec2, Vec3};
@@ -49,8 +55,42 @@ pub struct Camera {
     pub up: Vec3,
     pub right: Vec3,
     pub projection: Projection,
+    /// The image's size: the window's where there is one.
     pub width: u32,
     pub height: u32,
+    /// The rectangle of the projection's pixels the image holds; `None`:
+    /// all of them.
+    pub window: Option<Window>,
+}
+
+/// A rectangle of a projection's pixels: the image's pixel `(0, 0)` is the
+/// projection's `(x, y)`, and the projection is `full_width` by
+/// `full_height` pixels (the image's `width` by `height` lie inside it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Window {
+    pub x: u32,
+    pub y: u32,
+    pub full_width: u32,
+    pub full_height: u32,
+}
+
+impl Window {
+    /// Checks that a `width` x `height` window at `(x, y)` lies inside a
+    /// `full_width` x `full_height` projection and holds a pixel; the
+    /// error names which bound fails.
+    pub fn check(&self, width: u32, height: u32) -> Result<()> {
+        let (x, y, fw, fh) = (self.x, self.y, self.full_width, self.full_height);
+        ensure!(
+            width > 0 && height > 0,
+            "window {width}x{height} at ({x}, {y}) holds no pixel"
+        );
+        ensure!(
+            u64::from(x) + u64::from(width) <= u64::from(fw)
+                && u64::from(y) + u64::from(height) <= u64::from(fh),
+            "window {width}x{height} at ({x}, {y}) reaches outside the {fw}x{fh} projection"
+        );
+        Ok(())
+    }
 }
 
 impl Camera {
@@ -116,7 +156,50 @@ impl Camera {
             projection,
             width,
             height,
+            window: None,
         })
+    }
+
+    /// This camera holding only the `width` x `height` pixels of its
+    /// projection from `(x, y)` on (in the full projection's pixels);
+    /// the whole projection gives a camera without a window.
+    pub fn cropped(&self, x: u32, y: u32, width: u32, height: u32) -> Result<Camera> {
+        let (fw, fh) = self.full_size();
+        let (ox, oy) = self.window.map_or((0, 0), |w| (w.x, w.y));
+        let window = Window {
+            x: ox + x,
+            y: oy + y,
+            full_width: fw,
+            full_height: fh,
+        };
+        window.check(width, height)?;
+        let whole = (window.x, window.y, width, height) == (0, 0, fw, fh);
+        Ok(Camera {
+            width,
+            height,
+            window: (!whole).then_some(window),
+            ..*self
+        })
+    }
+
+    /// The size of the whole projection, window or not.
+    pub fn full_size(&self) -> (u32, u32) {
+        self.window
+            .map_or((self.width, self.height), |w| (w.full_width, w.full_height))
+    }
+
+    /// The window's corner in the projection's pixels (`(0, 0)` without one).
+    pub fn origin(&self) -> (u32, u32) {
+        self.window.map_or((0, 0), |w| (w.x, w.y))
+    }
+
+    /// The index of image pixel `(x, y)` among all the projection's pixels,
+    /// row by row: what a pixel's random numbers are drawn from, so that
+    /// a pixel gets the same samples whether or not its image is cropped.
+    pub fn pixel_index(&self, x: u32, y: u32) -> u64 {
+        let (ox, oy) = self.origin();
+        let fw = u64::from(self.full_size().0);
+        (u64::from(y) + u64::from(oy)) * fw + u64::from(x) + u64::from(ox)
     }
 
     fn local_to_world(&self, local: Vec3) -> Vec3 {
@@ -135,7 +218,26 @@ impl Camera {
     /// direction (so hit distances are ray parameters). `None` where the
     /// projection covers no direction (outside a fisheye's image circle).
     pub fn ray(&self, x: f32, y: f32) -> Option<Ray> {
-        let (w, h) = (self.width as f32, self.height as f32);
+        let (ox, oy) = self.origin();
+        if (ox, oy) == (0, 0) {
+            return self.full_ray(x, y);
+        }
+        self.full_ray(x + ox as f32, y + oy as f32)
+    }
+
+    /// The ray through the point `(dx, dy)` (each in `[0, 1)`) of pixel
+    /// `(x, y)`: the same ray, bit for bit, whether or not the image is
+    /// cropped to a window (the offset is added to the whole pixel index,
+    /// not to the rounded continuous position).
+    pub fn pixel_ray(&self, x: u32, y: u32, dx: f32, dy: f32) -> Option<Ray> {
+        let (ox, oy) = self.origin();
+        self.full_ray((x + ox) as f32 + dx, (y + oy) as f32 + dy)
+    }
+
+    /// [`Camera::ray`] at a position in the whole projection's pixels.
+    fn full_ray(&self, x: f32, y: f32) -> Option<Ray> {
+        let (w, h) = self.full_size();
+        let (w, h) = (w as f32, h as f32);
         let local = match self.projection {
             Projection::Perspective { vfov_deg } => {
                 let tan = (vfov_deg.to_radians() * 0.5).tan();
@@ -169,10 +271,11 @@ impl Camera {
 
     /// Continuous pixel position of world point `p`, or `None` where the
     /// projection does not see it (behind a pinhole, outside the fisheye's
-    /// hemisphere or the image).
+    /// hemisphere or the image, or its window).
     pub fn project(&self, p: Vec3) -> Option<Vec2> {
         let d = self.world_to_local(p - self.position);
-        let (w, h) = (self.width as f32, self.height as f32);
+        let (w, h) = self.full_size();
+        let (w, h) = (w as f32, h as f32);
         let px = match self.projection {
             Projection::Perspective { vfov_deg } => {
                 if d.z <= 0.0 {
@@ -212,6 +315,12 @@ impl Camera {
                 Vec2::new(uv.x * w, (1.0 - uv.y) * h)
             }
         };
+        if self.window.is_none() {
+            return (px.x >= 0.0 && px.x <= w && px.y >= 0.0 && px.y <= h).then_some(px);
+        }
+        let (ox, oy) = self.origin();
+        let px = px - Vec2::new(ox as f32, oy as f32);
+        let (w, h) = (self.width as f32, self.height as f32);
         (px.x >= 0.0 && px.x <= w && px.y >= 0.0 && px.y <= h).then_some(px)
     }
 
@@ -220,7 +329,8 @@ impl Camera {
     pub fn pixel_solid_angle(&self, i: u32, j: u32) -> f32 {
         match self.projection {
             Projection::Sphere => {
-                4.0 * std::f32::consts::PI / (self.width as f32 * self.height as f32)
+                let (w, h) = self.full_size();
+                4.0 * std::f32::consts::PI / (w as f32 * h as f32)
             }
             _ => {
                 let c = |x: f32, y: f32| self.ray(x, y).map(|r| r.dir);

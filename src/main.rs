@@ -815,6 +815,10 @@ struct BakeOptions {
     /// What a view-space cell's fitness measures.
     #[arg(long, value_parser = cli::choice::<ViewFitness>(), default_value_t = ViewFitness::Ids)]
     view_fitness: ViewFitness,
+    /// Keep every pixel of each base's projection, not only the window
+    /// that may see the scene (the rest sees only sky, which frames trace).
+    #[arg(long)]
+    whole_bases: bool,
 }
 
 impl BakeOptions {
@@ -839,6 +843,7 @@ impl BakeOptions {
                 resolution: self.resolution,
                 master_list: self.master_list,
                 view_fitness: self.view_fitness,
+                whole: self.whole_bases,
             },
         };
         let sampling = bake::Sampling {
@@ -883,6 +888,9 @@ impl BakeOptions {
         push("--view-fitness", self.view_fitness.to_string());
         if self.master_list {
             w.push("--master-list".into());
+        }
+        if self.whole_bases {
+            w.push("--whole-bases".into());
         }
         w
     }
@@ -960,6 +968,10 @@ fn bake_command(args: BakeArgs) -> Result<()> {
     for why in &p.skipped {
         println!("  skipped: {why}");
     }
+    println!(
+        "{}",
+        bake::window::describe(&manifest.windows, manifest.settings.size)
+    );
     match (settings.indirect, summary.radiosity_seconds) {
         (IndirectSource::Path, _) => println!("radiosity skipped: indirect light is traced"),
         (IndirectSource::Radiosity, Some(t)) => println!("radiosity: solved in {t:.3} s"),

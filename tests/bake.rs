@@ -9,7 +9,7 @@ use rangewalk::accel::{self, Backend, InstancedEngine};
 use rangewalk::bake::{self, size, BaseProjection, IndirectSource, Settings, Shard};
 use rangewalk::camera::{Camera, Projection};
 use rangewalk::eval::metrics::luminance;
-use rangewalk::image::exr_content_hash;
+use rangewalk::image::{exr_content_hash, NO_HIT};
 use rangewalk::plan::{Plan, PlannedView};
 use rangewalk::render::multipass::{self, Indirect};
 use rangewalk::render::{self, Progress, RenderSettings};
@@ -204,7 +204,9 @@ fn base_images_hold_their_layers_and_first_hits() {
         let base = b.read(k).unwrap();
         let img = &base.image;
         assert_eq!(img.meta.camera.projection, Projection::Sphere);
-        assert_eq!((img.width, img.height), (64, 64));
+        let window = b.manifest.windows[b.manifest.images[k].view];
+        assert_eq!((img.width, img.height), (window.width, window.height));
+        assert_eq!(img.meta.camera.full_size(), (64, 64));
         let e = &b.manifest.images[k];
         assert_eq!(img.meta.time, e.time);
         assert_eq!(
@@ -488,4 +490,244 @@ fn shards_of_one_bake_run_together_and_other_runs_on_their_images_are_refused() 
         assert_eq!((again.rendered, again.removed), (0, 1));
         assert!(!stray.exists());
     });
+}
+
+/// The Cornell box's two-by-two plan baked whole and cropped, into
+/// `dir/whole` and `dir/partial`, sampled to a noise target (whose floor
+/// and windows of neighbours must come out the same cropped).
+fn whole_and_partial(scene: &Scene, dir: &Path, size: u32) -> (bake::Bake, bake::Bake) {
+    let sampling = bake::Sampling {
+        noise: Some(0.1),
+        max_spp: Some(6),
+    };
+    let open = |whole: bool, name: &str| {
+        let mut settings = Settings {
+            size,
+            spp: 2,
+            ..tiny(IndirectSource::Path)
+        };
+        settings.planning.whole = whole;
+        let dir = dir.join(name);
+        let mut e = engine(scene, settings.backend);
+        let plan = two_by_two(scene);
+        bake::run_observed(
+            scene,
+            &dir,
+            &settings,
+            &sampling,
+            Shard::ALL,
+            e.as_mut(),
+            |_| Ok(plan),
+            &mut |_| true,
+        )
+        .unwrap_or_else(|e| panic!("{e:#}"));
+        bake::Bake::open(&dir, scene).unwrap_or_else(|e| panic!("{e:#}"))
+    };
+    (open(true, "whole"), open(false, "partial"))
+}
+
+#[test]
+fn a_window_holds_every_pixel_that_sees_the_scene_as_the_whole_image_has_it() {
+    let scene = load(&scene_path("cornell-box"));
+    let tmp = tempfile::tempdir().unwrap();
+    let size = 384;
+    let (whole, partial) = whole_and_partial(&scene, tmp.path(), size);
+    let (mut seen, mut kept) = (0u64, 0u64);
+    for k in 0..whole.manifest.images.len() {
+        let (w, _) = whole.read_layers(k, &[]).unwrap();
+        let (p, _) = partial.read_layers(k, &[]).unwrap();
+        assert_eq!((w.width, w.height), (size, size));
+        assert_eq!(w.meta.camera.window, None);
+        let window = partial.manifest.windows[partial.manifest.images[k].view];
+        let (x0, y0) = p.meta.camera.origin();
+        assert_eq!(
+            (x0, y0, p.width, p.height),
+            (window.x, window.y, window.width, window.height)
+        );
+        assert_eq!(p.meta.camera.full_size(), (size, size));
+        assert!(!window.is_whole(size), "image {k}: nothing cropped");
+        kept += window.pixels();
+        // Every pixel that sees geometry, with two pixels round it for the
+        // footprints and filters beside silhouettes, lies in the window.
+        let margin = 2;
+        for y in 0..size {
+            for x in 0..size {
+                let i = (y * size + x) as usize;
+                if w.object_id[i] == NO_HIT {
+                    continue;
+                }
+                seen += 1;
+                let inside = |a: u32, lo: u32, n: u32| {
+                    (a >= lo + margin || lo == 0) && (a + margin < lo + n || lo + n == size)
+                };
+                assert!(
+                    inside(x, x0, p.width) && inside(y, y0, p.height),
+                    "image {k}: pixel ({x}, {y}) sees object {} and lies outside (or within \
+                     {margin} pixels of the edge of) the window {window}",
+                    w.object_id[i]
+                );
+            }
+        }
+        // And the window's pixels are the whole image's, bit for bit.
+        for y in 0..p.height {
+            for x in 0..p.width {
+                let (i, j) = (
+                    ((y + y0) * size + x + x0) as usize,
+                    (y * p.width + x) as usize,
+                );
+                assert_eq!(
+                    (
+                        w.radiance[i].to_array().map(f32::to_bits),
+                        w.distance[i].to_bits(),
+                        w.object_id[i],
+                        w.primitive_id[i],
+                        w.normal[i].to_array().map(f32::to_bits)
+                    ),
+                    (
+                        p.radiance[j].to_array().map(f32::to_bits),
+                        p.distance[j].to_bits(),
+                        p.object_id[j],
+                        p.primitive_id[j],
+                        p.normal[j].to_array().map(f32::to_bits)
+                    ),
+                    "image {k}: window pixel ({x}, {y}), whole pixel ({}, {})",
+                    x + x0,
+                    y + y0
+                );
+            }
+        }
+    }
+    let all = u64::from(size * size) * whole.manifest.images.len() as u64;
+    eprintln!(
+        "{:.1}% of the whole images' pixels see geometry; the windows keep {:.1}%",
+        100.0 * seen as f64 / all as f64,
+        100.0 * kept as f64 / all as f64
+    );
+    assert!(seen > 0);
+}
+
+/// `dir`'s manifest as JSON, changed by `change`, written back.
+fn edit_manifest(dir: &Path, change: impl FnOnce(&mut serde_json::Value)) {
+    let path = dir.join(bake::manifest::MANIFEST);
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    change(&mut m);
+    std::fs::write(&path, serde_json::to_string_pretty(&m).unwrap()).unwrap();
+}
+
+#[test]
+fn a_bad_window_in_a_manifest_or_an_exr_is_refused_naming_the_file_and_field() {
+    let scene = load(&scene_path("cornell-box"));
+    let tmp = tempfile::tempdir().unwrap();
+    let settings = Settings {
+        size: 384,
+        spp: 1,
+        ..tiny(IndirectSource::Path)
+    };
+    let good = tmp.path().join("good");
+    bake_into(&scene, &good, &settings, Shard::ALL);
+    let m = bake::Manifest::read(&good).unwrap();
+    let window = m.windows[0];
+    assert!(!window.is_whole(384) && window.x + window.width + 16 <= 384);
+    let copy = |name: &str| {
+        let dir = tmp.path().join(name);
+        std::fs::create_dir_all(dir.join("images")).unwrap();
+        for f in ["manifest.json".to_string()]
+            .into_iter()
+            .chain(m.images.iter().map(|e| e.file.clone()))
+        {
+            std::fs::copy(good.join(&f), dir.join(&f)).unwrap();
+        }
+        dir
+    };
+    let refused =
+        |dir: &Path| -> String { format!("{:#}", bake::Bake::open(dir, &scene).unwrap_err()) };
+    let has = |e: &str, needles: &[&str]| {
+        for n in needles {
+            assert!(e.contains(n), "`{n}` not in: {e}");
+        }
+    };
+
+    // A window outside the image, or a missing one.
+    let dir = copy("outside");
+    edit_manifest(&dir, |m| m["windows"][1]["x"] = 300.into());
+    has(
+        &refused(&dir),
+        &["manifest.json", "`windows[1]`", "outside the 384x384"],
+    );
+    let dir = copy("missing");
+    edit_manifest(&dir, |m| m["windows"] = serde_json::json!([]));
+    has(
+        &refused(&dir),
+        &[
+            "manifest.json",
+            "`windows` has 0 entries for the plan's 2 views",
+        ],
+    );
+    // A window inside the image that is not the one its images hold: the
+    // bake opens, its images do not.
+    let dir = copy("moved");
+    edit_manifest(&dir, |m| m["windows"][0]["x"] = (window.x + 16).into());
+    let b = bake::Bake::open(&dir, &scene).unwrap();
+    let e = format!("{:#}", b.read(0).unwrap_err());
+    has(&e, &[&m.images[0].file, "data window", "`windows[0]`"]);
+    // A manifest of a later version is refused as before.
+    let dir = copy("later");
+    edit_manifest(&dir, |m| m["version"] = 6.into());
+    has(&refused(&dir), &["manifest.json", "`version` is 6"]);
+
+    // An EXR whose data window does not lie in its display window, with
+    // either reader.
+    let file = good.join(&m.images[0].file);
+    let mut exr = exr::prelude::read_all_data_from_file(&file).unwrap();
+    exr.attributes.display_window =
+        exr::prelude::IntegerBounds::new(exr::prelude::Vec2(0, 0), exr::prelude::Vec2(200, 200));
+    let bad = tmp.path().join("bad.exr");
+    exr::prelude::WritableImage::write(&exr)
+        .to_file(&bad)
+        .unwrap();
+    let bad_name = bad.display().to_string();
+    for e in [
+        rangewalk::image::read_exr(&bad).unwrap_err(),
+        rangewalk::image::exr_io::read(&bad).unwrap_err(),
+    ] {
+        has(
+            &format!("{e:#}"),
+            &[&bad_name, "`dataWindow`", "`displayWindow`"],
+        );
+    }
+}
+
+#[test]
+fn a_bake_of_manifest_version_4_reads_as_whole_images() {
+    let scene = load(&scene_path("cornell-box"));
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("bake");
+    let mut settings = Settings {
+        size: 256,
+        spp: 1,
+        ..tiny(IndirectSource::Path)
+    };
+    settings.planning.whole = true;
+    bake_into(&scene, &dir, &settings, Shard::ALL);
+    let before: Vec<_> = {
+        let b = bake::Bake::open(&dir, &scene).unwrap();
+        (0..b.manifest.images.len())
+            .map(|k| b.read_layers(k, &[]).unwrap().0)
+            .collect()
+    };
+    // What version 4 wrote: no windows, no `whole` in the settings.
+    edit_manifest(&dir, |m| {
+        m["version"] = 4.into();
+        m.as_object_mut().unwrap().remove("windows");
+        m["settings"]["planning"]
+            .as_object_mut()
+            .unwrap()
+            .remove("whole");
+    });
+    let b = bake::Bake::open(&dir, &scene).unwrap_or_else(|e| panic!("{e:#}"));
+    assert!(b.manifest.windows.iter().all(|w| w.is_whole(256)));
+    for (k, want) in before.iter().enumerate() {
+        assert_eq!(&b.read_layers(k, &[]).unwrap().0, want, "image {k}");
+    }
 }

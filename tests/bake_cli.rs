@@ -511,3 +511,63 @@ fn status_and_bake_never_call_a_bake_with_a_missing_image_complete() {
     let status = text(&run(&["bake", "--status", o])).0;
     assert!(status.contains("bake complete"), "{status}");
 }
+
+/// A bake says how much of its bases' pixels its windows leave out,
+/// `--whole-bases` keeps them whole and says so, and resuming a bake with
+/// the other choice is refused naming the option.
+#[test]
+fn a_bake_says_what_its_windows_leave_out_and_whole_bases_keep_everything() {
+    let scene = scene("cornell-box");
+    let tmp = tempfile::tempdir().unwrap();
+    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
+    let (a_, b_) = (a.to_str().unwrap(), b.to_str().unwrap());
+    let partial = with(traced(&scene, a_, "384", "1"), &["--noise", "off"]);
+    let r = run(&partial);
+    let (stdout, stderr) = text(&r);
+    assert!(r.status.success(), "{stderr}");
+    let m = Manifest::read(&a).unwrap();
+    let views = m.plan.views.len();
+    assert!(
+        m.windows.iter().all(|w| !w.is_whole(384)),
+        "{:?}",
+        m.windows
+    );
+    let all = (384 * 384 * views) as f64;
+    let kept: u64 = m.windows.iter().map(|w| w.pixels()).sum();
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("base windows:"))
+        .unwrap_or_else(|| panic!("no line on the windows: {stdout}"));
+    for want in [
+        format!("{views} of {views} views"),
+        format!(
+            "left out: {:.1}% of the base pixels",
+            100.0 * (1.0 - kept as f64 / all)
+        ),
+    ] {
+        assert!(line.contains(&want), "`{want}` not in: {line}");
+    }
+    let whole = with(
+        traced(&scene, b_, "384", "1"),
+        &["--noise", "off", "--whole-bases"],
+    );
+    let r = run(&whole);
+    let (stdout, stderr) = text(&r);
+    assert!(r.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("base windows: every base keeps its whole 384x384 image"),
+        "{stdout}"
+    );
+    assert!(Manifest::read(&b)
+        .unwrap()
+        .windows
+        .iter()
+        .all(|w| w.is_whole(384)));
+    let again = with(partial.clone(), &["--whole-bases"]);
+    let r = run(&again);
+    let (_, stderr) = text(&r);
+    assert!(
+        !r.status.success() && stderr.contains("--whole-bases"),
+        "{stderr}"
+    );
+}

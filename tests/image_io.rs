@@ -442,3 +442,49 @@ fn textures_declaring_huge_sizes_are_refused_by_name() {
     assert_message_names(err, &path);
     assert!(message.contains("than the 67108864"), "{message}");
 }
+
+#[test]
+fn a_window_of_a_projection_round_trips_through_both_back_ends() {
+    let dir = tempfile::tempdir().unwrap();
+    for projection in PROJECTIONS {
+        // A 7x5 window at (9, 4) of a 20x12 projection.
+        let mut image = sample_image_of(projection, 20, 12);
+        let cropped = image.meta.camera.cropped(9, 4, 7, 5).unwrap();
+        image = RangeImage {
+            meta: RangeMeta {
+                camera: cropped,
+                ..image.meta
+            },
+            ..sample_image(projection)
+        };
+        let (a, b) = (dir.path().join("a.exr"), dir.path().join("b.exr"));
+        write_exr(&a, &image).unwrap();
+        exr_io::write(&b, &image).unwrap();
+        for (path, read) in [
+            (&a, exr_io::read(&a).unwrap()),
+            (&b, read_exr(&b).unwrap()),
+            (&a, read_exr(&a).unwrap()),
+        ] {
+            assert_eq!(read, image, "{projection:?}: {}", path.display());
+        }
+        assert_eq!(
+            rangewalk::image::exr_content_hash(&a).unwrap(),
+            rangewalk::image::exr_content_hash(&b).unwrap()
+        );
+        // The window is part of what the checksum covers.
+        write_exr(&b, &sample_image(projection)).unwrap();
+        assert_ne!(
+            rangewalk::image::exr_content_hash(&a).unwrap(),
+            rangewalk::image::exr_content_hash(&b).unwrap()
+        );
+        // Its pixels look where the whole projection's do.
+        let whole = sample_image_of(projection, 20, 12).meta.camera;
+        let (r, w) = (cropped.ray(1.5, 2.5), whole.ray(10.5, 6.5));
+        assert_eq!(r.map(|r| r.dir), w.map(|r| r.dir));
+        if let Some(r) = r {
+            let p = r.at(3.0);
+            let (pc, pw) = (cropped.project(p).unwrap(), whole.project(p).unwrap());
+            assert!((pc + glam::Vec2::new(9.0, 4.0) - pw).length() < 1e-3);
+        }
+    }
+}

@@ -1425,3 +1425,146 @@ fn silhouettes_carry_a_renders_antialiasing() {
         "at silhouettes against the sky: synthesized {synthesized:.4}, a 16-spp render (the bases' samples) {rendered:.4}"
     );
 }
+
+/// The Cornell box's view-space ends at both ends of its animation, baked
+/// whole and cropped to what the bases may see, into `dir/whole` and
+/// `dir/partial`.
+fn whole_and_partial(
+    scene: &Scene,
+    dir: &Path,
+    size: u32,
+    projection: BaseProjection,
+) -> (bake::Bake, bake::Bake) {
+    let plan = || ends(scene, &[0.0, 1.0]);
+    let partial = Settings {
+        projection,
+        ..settings(size, 1)
+    };
+    let mut whole = partial;
+    whole.planning.whole = true;
+    (
+        bake_into(scene, &dir.join("whole"), &whole, plan()),
+        bake_into(scene, &dir.join("partial"), &partial, plan()),
+    )
+}
+
+#[test]
+fn a_partial_bake_makes_the_frames_of_a_whole_one_bit_for_bit() {
+    for projection in [BaseProjection::Sphere, BaseProjection::Fisheye] {
+        partial_frames_are_whole_frames(projection);
+    }
+}
+
+fn partial_frames_are_whole_frames(projection: BaseProjection) {
+    let scene = load(&scene_path("cornell-box"));
+    let dir = tempfile::tempdir().unwrap();
+    // 384: the box covers the middle third of the image's side, so the
+    // windows start past the first 128-pixel block and end before the edge.
+    let size = 384;
+    let (whole, partial) = whole_and_partial(&scene, dir.path(), size, projection);
+    for (v, w) in partial.manifest.windows.iter().enumerate() {
+        assert!(
+            w.pixels() * 2 < u64::from(size * size) && (w.x, w.y) != (0, 0),
+            "{projection}, view {v}: window {w} of {size}x{size} does not test cropping"
+        );
+    }
+    let Some(rangewalk::scene::ViewSpace::Segment { a, b }) = scene.view_space else {
+        panic!("the Cornell box's view space is a segment");
+    };
+    let main = scene.camera("main").unwrap();
+    // Across the view space (its ends, between them), looking into the
+    // box, past its sides and top edge into the sky, and away from it.
+    let mut cameras = Vec::new();
+    for s in [0.0, 0.3, 1.0] {
+        let at = a.lerp(b, s);
+        for (yaw, pitch) in [
+            (0.0f32, 0.0f32),
+            (24.0, 0.0),
+            (-24.0, 8.0),
+            (0.0, 18.0),
+            (180.0, 0.0),
+        ] {
+            let d = glam::Quat::from_rotation_y(yaw.to_radians())
+                * glam::Quat::from_rotation_x(-pitch.to_radians())
+                * main.direction;
+            let p = Projection::Perspective {
+                vfov_deg: main.vfov_deg,
+            };
+            cameras.push(Camera::looking(at, d, main.up, p, 48, 48).unwrap());
+        }
+    }
+    let variants = [
+        ("defaults", Options::default()),
+        (
+            "foreground fill (sky splatted), untraced",
+            Options {
+                fill: Fill::Foreground,
+                light_rays: 0,
+                ..Options::default()
+            },
+        ),
+        (
+            "foreground fill (sky splatted)",
+            Options {
+                fill: Fill::Foreground,
+                ..Options::default()
+            },
+        ),
+        (
+            "nearest first",
+            Options {
+                blend: Blend::Nearest,
+                ..Options::default()
+            },
+        ),
+        (
+            "linear in time",
+            Options {
+                time_interp: TimeInterp::Linear,
+                ..Options::default()
+            },
+        ),
+        (
+            "re-shaded",
+            Options {
+                time_interp: TimeInterp::Reshade,
+                ..Options::default()
+            },
+        ),
+    ];
+    let mut a_synth = Synthesizer::new(&scene, &whole, DEFAULT_BUDGET);
+    let mut b_synth = Synthesizer::new(&scene, &partial, DEFAULT_BUDGET);
+    let mut sky = 0;
+    for (name, opts) in &variants {
+        for (c, camera) in cameras.iter().enumerate() {
+            for t in [0.0, 0.4, 1.0] {
+                let (want, _) = a_synth.frame(camera, t, opts).unwrap();
+                let (got, _) = b_synth.frame(camera, t, opts).unwrap();
+                let same = |k: usize| {
+                    want.radiance[k].to_array().map(f32::to_bits)
+                        == got.radiance[k].to_array().map(f32::to_bits)
+                        && want.object_id[k] == got.object_id[k]
+                        && want.distance[k].to_bits() == got.distance[k].to_bits()
+                };
+                let differ: Vec<usize> = (0..want.len()).filter(|&k| !same(k)).collect();
+                if let Some(&k) = differ.first() {
+                    panic!(
+                        "{projection}, {name}, camera {c} at {} looking {}, t = {t}: {} pixels differ; \
+                         first ({}, {}): whole {} (object {}), partial {} (object {})",
+                        camera.position,
+                        camera.forward,
+                        differ.len(),
+                        k % 48,
+                        k / 48,
+                        want.radiance[k],
+                        want.object_id[k],
+                        got.radiance[k],
+                        got.object_id[k]
+                    );
+                }
+                sky += want.object_id.iter().filter(|&&o| o == NO_HIT).count();
+            }
+        }
+    }
+    assert!(sky > 0, "{projection}: no frame saw the sky beside the box");
+}

@@ -19,16 +19,17 @@ use crate::image;
 use crate::plan::Plan;
 use crate::scene::hash::ContentHash;
 
+use super::window::BaseWindow;
 use super::{Sampling, Settings};
 use crate::render::noise::NoiseReport;
 
 /// Identifies a base-image bake manifest.
 pub const FORMAT: &str = "rangewalk-base-images";
-/// Bumped whenever the layout changes. Version 4 records the sampling
-/// settings and each image's noise, version 3 the planning settings;
-/// versions 2 and 3 are read too (see [`Manifest::read`]); others are
-/// refused.
-pub const VERSION: u32 = 4;
+/// Bumped whenever the layout changes. Version 5 records each view's
+/// window (partial base images), version 4 the sampling settings and each
+/// image's noise, version 3 the planning settings; versions 2 to 4 are
+/// read too (see [`Manifest::read`]); others are refused.
+pub const VERSION: u32 = 5;
 pub const MANIFEST: &str = "manifest.json";
 /// The object-space bake (radiosity), when indirect light comes from it.
 pub const RADIOSITY: &str = "radiosity";
@@ -47,6 +48,11 @@ pub struct Manifest {
     #[serde(default = "flat")]
     pub sampling: Sampling,
     pub plan: Plan,
+    /// Each view's window: the pixels of the whole `settings.size`²
+    /// projection its images hold (see [`super::window`]). Absent before
+    /// version 5, whose images are whole.
+    #[serde(default)]
+    pub windows: Vec<BaseWindow>,
     /// Every (view, time) image, in the order shards count them.
     pub images: Vec<ImageEntry>,
     /// Whether every image is rendered and its checksum recorded here.
@@ -91,8 +97,13 @@ impl Manifest {
             );
         }
         let mut m = m;
+        if m.version < 5 && m.windows.is_empty() {
+            // Images of older bakes hold the whole projection: a window
+            // as large as the image is exactly that.
+            m.windows = vec![BaseWindow::whole(m.settings.size); m.plan.views.len()];
+        }
         match m.version {
-            VERSION | 3 => {}
+            VERSION | 3 | 4 => {}
             // Version 2 did not record the planning settings, but its plans
             // did, as made: the id-image side, whether one master list, and
             // the view fitness (ids, the only one there was before plans
@@ -107,6 +118,7 @@ impl Manifest {
                     resolution: (side != crate::plan::default_resolution(quality)).then_some(side),
                     master_list: m.plan.master_list,
                     view_fitness: m.plan.view_fitness,
+                    whole: false,
                 }
             }
             v => bail!(
@@ -142,6 +154,17 @@ impl Manifest {
                     view.times
                 );
             }
+        }
+        if self.windows.len() != views.len() {
+            bail!(
+                "`windows` has {} entries for the plan's {} views",
+                self.windows.len(),
+                views.len()
+            );
+        }
+        for (v, w) in self.windows.iter().enumerate() {
+            w.check(self.settings.size)
+                .with_context(|| format!("`windows[{v}]`"))?;
         }
         for (k, e) in self.images.iter().enumerate() {
             let Some(view) = views.get(e.view) else {
@@ -268,6 +291,7 @@ mod tests {
                 planning: super::super::Planning::default(),
             },
             sampling: Sampling::FLAT,
+            windows: vec![BaseWindow::whole(4); views.len()],
             plan: Plan {
                 views,
                 ..Plan::default()

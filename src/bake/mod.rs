@@ -2,7 +2,8 @@
 //! full-sphere (or 180° fisheye) range image rendered by the multipass
 //! renderer: radiance, distance, object and primitive ids and normals, with
 //! the diffuse-indirect part and the rest (direct and specular) as separate
-//! layers for the synthesis.
+//! layers for the synthesis. Each view's images hold only the window of
+//! the projection that may see the scene ([`window`]).
 //!
 //! A bake directory holds the plan, the settings and a content hash of the
 //! scene in `manifest.json` (see `docs/bake-format.md`), the radiosity
@@ -43,9 +44,11 @@ pub mod sampling;
 pub mod size;
 pub mod slurm;
 pub mod status;
+pub mod window;
 
 pub use manifest::{ImageEntry, Manifest};
 pub use sampling::Sampling;
+pub use window::BaseWindow;
 
 /// The layers a base image holds besides its radiance.
 pub const DIRECT: &str = "direct";
@@ -129,6 +132,10 @@ pub struct Planning {
     pub resolution: Option<u32>,
     pub master_list: bool,
     pub view_fitness: ViewFitness,
+    /// Whether every base keeps its whole projection (`--whole-bases`),
+    /// not only the window that may see the scene ([`window`]).
+    #[serde(default)]
+    pub whole: bool,
 }
 
 impl Settings {
@@ -389,8 +396,11 @@ pub fn run_observed(
             }
             IndirectSource::Path => None,
         };
-        let pixels = settings.size as u64 * settings.size as u64;
-        let bar = ProgressBar::new(pixels * todo.len() as u64).with_style(
+        let pixels: u64 = todo
+            .iter()
+            .map(|&k| manifest.windows[manifest.images[k].view].pixels())
+            .sum();
+        let bar = ProgressBar::new(pixels).with_style(
             ProgressStyle::with_template(
                 "{msg} {bar:40} {percent}% of pixels, {elapsed} ({eta} left)",
             )
@@ -614,6 +624,25 @@ fn start_or_resume(
         for (i, v) in plan.views.iter().enumerate() {
             ensure!(!v.times.is_empty(), "the plan gives view {i} no times");
         }
+        let positions: Vec<Vec3> = plan.views.iter().map(|v| v.position).collect();
+        let space = window::viewpoints(scene, &positions);
+        // Every view's times: a frame blends the sky of bases of several
+        // views, and each must hold the directions the others may see
+        // geometry in at theirs.
+        let mut times: Vec<f32> = plan.views.iter().flat_map(|v| v.times.clone()).collect();
+        times.sort_by(f32::total_cmp);
+        times.dedup();
+        let windows = plan
+            .views
+            .iter()
+            .map(|v| {
+                if settings.planning.whole {
+                    return Ok(BaseWindow::whole(settings.size));
+                }
+                let camera = base_camera(scene, v.position, settings)?;
+                Ok(window::find(scene, &camera, &times, space))
+            })
+            .collect::<Result<Vec<_>>>()?;
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let m = Manifest {
             format: manifest::FORMAT.into(),
@@ -622,6 +651,7 @@ fn start_or_resume(
             scene_hash: hash.clone(),
             settings: *settings,
             sampling: *sampling,
+            windows,
             images: image_entries(&plan),
             plan,
             complete: false,
@@ -705,6 +735,16 @@ fn describe_difference(was: &Settings, now: &Settings) -> String {
         a.view_fitness.to_string(),
         b.view_fitness.to_string(),
     );
+    if a.whole != b.whole {
+        out.push(
+            if a.whole {
+                "--whole-bases, not bases cropped to what they may see"
+            } else {
+                "bases cropped to what they may see, not --whole-bases"
+            }
+            .into(),
+        );
+    }
     if a.master_list != b.master_list {
         out.push(
             if a.master_list {
@@ -755,7 +795,9 @@ fn render_image(
     bar: &ProgressBar,
 ) -> Result<(crate::render::RenderStats, NoiseReport)> {
     let view = &manifest.plan.views[e.view];
-    let camera = base_camera(scene, view.position, settings)?;
+    let camera = manifest.windows[e.view]
+        .crop(&base_camera(scene, view.position, settings)?)
+        .with_context(|| format!("`windows[{}]`", e.view))?;
     engine
         .set_transforms(&scene.at(e.time))
         .with_context(|| format!("posing the scene at t = {}", e.time))?;
@@ -889,6 +931,28 @@ impl Bake {
         };
         if e.fnv1a64.as_deref() != Some(manifest::hex(sum).as_str()) {
             return Err(damaged());
+        }
+        // The checksum holds the window the image was written with; the
+        // manifest's must be that one, or pixels would be put in the
+        // wrong directions.
+        let window = self.manifest.windows.get(e.view);
+        let camera = &image.meta.camera;
+        let (x, y) = camera.origin();
+        let held = BaseWindow {
+            x,
+            y,
+            width: camera.width,
+            height: camera.height,
+        };
+        let size = self.manifest.settings.size;
+        if window != Some(&held) || camera.full_size() != (size, size) {
+            let (fw, fh) = camera.full_size();
+            bail!(
+                "{}: its EXR data window, {held} of a {fw}x{fh} display window, is not the manifest's `windows[{}]`, {} of {size}x{size}: the bake is inconsistent; bake it again into a new directory",
+                path.display(),
+                e.view,
+                window.map_or("absent".to_string(), |w| w.to_string())
+            );
         }
         Ok((image, layers))
     }

@@ -7,7 +7,7 @@ use std::path::Path;
 use anyhow::{anyhow, bail, ensure, Context, Result};
 use exr::prelude::*;
 
-use super::planes::{Attr, Plane, Planes};
+use super::planes::{Attr, DataWindow, Plane, Planes};
 use super::Texture;
 use super::{write_atomically, RangeImage, MAX_PIXELS};
 
@@ -62,13 +62,36 @@ pub(super) fn write_planes(path: &Path, planes: &Planes) -> Result<()> {
         };
         attributes.other.insert(text(name), value);
     }
-    let layer = Layer::new(
+    let mut layer = Layer::new(
         (planes.width as usize, planes.height as usize),
         attributes,
         Encoding::SMALL_LOSSLESS,
         AnyChannels::sort(channels),
     );
-    Image::from_layer(layer).write().to_file(path).map_err(|e| {
+    // The display window at the origin, the data window inside it.
+    let display = match planes.window {
+        None => None,
+        Some(d) => {
+            let (Ok(x), Ok(y), Ok(fw), Ok(fh)) = (
+                i32::try_from(d.x),
+                i32::try_from(d.y),
+                usize::try_from(d.full_width),
+                usize::try_from(d.full_height),
+            ) else {
+                bail!(
+                    "{}: window {d:?} does not fit an EXR header",
+                    path.display()
+                );
+            };
+            layer.attributes.layer_position = Vec2(x, y);
+            Some(IntegerBounds::new(Vec2(0, 0), Vec2(fw, fh)))
+        }
+    };
+    let mut image = Image::from_layer(layer);
+    if let Some(display) = display {
+        image.attributes.display_window = display;
+    }
+    image.write().to_file(path).map_err(|e| {
         let why = match &e {
             exr::error::Error::Io(io) => super::write_error::describe(io),
             e => e.to_string(),
@@ -134,6 +157,14 @@ pub(super) fn read_planes(path: &Path) -> Result<Planes> {
         .map_err(|e| anyhow!("{}: cannot read EXR: {e}", path.display()))?;
     let layer = image.layer_data;
     let (width, height) = (layer.size.width(), layer.size.height());
+    let display = image.attributes.display_window;
+    let data = layer.attributes.layer_position;
+    let window = (display.position != data || display.size != layer.size).then(|| DataWindow {
+        x: i64::from(data.x()) - i64::from(display.position.x()),
+        y: i64::from(data.y()) - i64::from(display.position.y()),
+        full_width: display.size.width() as u64,
+        full_height: display.size.height() as u64,
+    });
     let (Ok(width), Ok(height)) = (u32::try_from(width), u32::try_from(height)) else {
         bail!("{}: EXR size {width}x{height} is too large", path.display());
     };
@@ -173,6 +204,7 @@ pub(super) fn read_planes(path: &Path) -> Result<Planes> {
     Ok(Planes {
         width,
         height,
+        window,
         channels,
         attributes,
     })

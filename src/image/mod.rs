@@ -371,6 +371,7 @@ fn rgb_planes(width: u32, height: u32, radiance: &[Vec3]) -> Result<planes::Plan
     Ok(planes::Planes {
         width,
         height,
+        window: None,
         channels: vec![
             channel("R", |c| c.x),
             channel("G", |c| c.y),

@@ -10,7 +10,7 @@ use std::path::Path;
 use anyhow::{anyhow, Result};
 use rayon::prelude::*;
 
-use super::planes::{gathered, Attr, Plane, Planes};
+use super::planes::{gathered, Attr, DataWindow, Plane, Planes};
 use super::{Texture, MAX_PIXELS};
 
 #[cxx::bridge(namespace = "rangewalk::oiio")]
@@ -46,6 +46,13 @@ mod ffi {
     struct Raster {
         width: u32,
         height: u32,
+        /// The pixels' (data window's) corner relative to the display
+        /// window's, and the display window's size: `(0, 0)` and the
+        /// pixels' own size where the two are one.
+        x: i64,
+        y: i64,
+        full_width: u64,
+        full_height: u64,
         channels: Vec<Channel>,
         attributes: Vec<Attribute>,
         /// Whether the file stores integers (read back normalized to
@@ -86,9 +93,19 @@ pub enum Format {
 
 /// Writes `planes` to `path` in `format`, whatever the file's extension.
 pub fn write(path: &Path, format: Format, planes: &Planes) -> Result<()> {
+    let d = planes.window.unwrap_or(DataWindow {
+        x: 0,
+        y: 0,
+        full_width: planes.width.into(),
+        full_height: planes.height.into(),
+    });
     let raster = ffi::Raster {
         width: planes.width,
         height: planes.height,
+        x: d.x,
+        y: d.y,
+        full_width: d.full_width,
+        full_height: d.full_height,
         channels: planes
             .channels
             .iter()
@@ -194,9 +211,17 @@ fn planes(decoded: ffi::Decoded) -> Result<Planes> {
             Some((a.name, attr))
         })
         .collect();
+    let whole = (raster.x, raster.y, raster.full_width, raster.full_height)
+        == (0, 0, raster.width.into(), raster.height.into());
     Ok(Planes {
         width: raster.width,
         height: raster.height,
+        window: (!whole).then_some(DataWindow {
+            x: raster.x,
+            y: raster.y,
+            full_width: raster.full_width,
+            full_height: raster.full_height,
+        }),
         channels,
         attributes,
     })

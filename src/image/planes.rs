@@ -12,7 +12,7 @@ use glam::Vec3;
 use super::color::srgb_decode;
 use super::Texture;
 use super::{RangeImage, RangeMeta};
-use crate::camera::{Camera, Projection};
+use crate::camera::{Camera, Projection, Window};
 use crate::checksum::Fnv;
 
 /// One channel's samples, row-major, top row first.
@@ -38,10 +38,24 @@ pub enum Attr {
     Text(String),
 }
 
+/// Where a file's pixels (its EXR data window) lie in the image they are
+/// part of (its display window): the data window's corner relative to the
+/// display window's, and the display window's size.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DataWindow {
+    pub x: i64,
+    pub y: i64,
+    pub full_width: u64,
+    pub full_height: u64,
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Planes {
+    /// The size of the pixels held: the data window's.
     pub width: u32,
     pub height: u32,
+    /// `None` where the data window is the display window.
+    pub window: Option<DataWindow>,
     pub channels: Vec<(String, Plane)>,
     pub attributes: Vec<(String, Attr)>,
 }
@@ -146,12 +160,53 @@ impl Planes {
         if let Projection::Perspective { vfov_deg } = cam.projection {
             attributes.push((VFOV.into(), Attr::Float(vfov_deg)));
         }
+        let window = cam.window.map(|v| DataWindow {
+            x: v.x.into(),
+            y: v.y.into(),
+            full_width: v.full_width.into(),
+            full_height: v.full_height.into(),
+        });
         Ok(Planes {
             width: w,
             height: h,
+            window,
             channels,
             attributes,
         })
+    }
+
+    /// The camera window the data window gives: it must lie inside the
+    /// display window, which is the projection's whole size.
+    fn camera_window(&self) -> Result<Option<Window>> {
+        let Some(d) = self.window else {
+            return Ok(None);
+        };
+        let (w, h) = (self.width, self.height);
+        let fits = |v: i64| u32::try_from(v).ok();
+        let (Some(x), Some(y), Some(full_width), Some(full_height)) = (
+            fits(d.x),
+            fits(d.y),
+            u32::try_from(d.full_width).ok(),
+            u32::try_from(d.full_height).ok(),
+        ) else {
+            bail!(
+                "EXR `dataWindow` ({w}x{h} at ({}, {}) of the `displayWindow`) lies outside the {}x{} `displayWindow`",
+                d.x,
+                d.y,
+                d.full_width,
+                d.full_height
+            );
+        };
+        let window = Window {
+            x,
+            y,
+            full_width,
+            full_height,
+        };
+        window
+            .check(w, h)
+            .map_err(|e| anyhow!("EXR `dataWindow` does not fit its `displayWindow`: {e}"))?;
+        Ok(Some(window))
     }
 
     /// The range image these planes hold; fails naming the first channel or
@@ -172,6 +227,7 @@ impl Planes {
             },
             width: self.width,
             height: self.height,
+            window: self.camera_window()?,
         };
         let meta = RangeMeta {
             camera,
@@ -238,6 +294,14 @@ impl Planes {
         let mut h = Fnv::default();
         h.write(&self.width.to_le_bytes());
         h.write(&self.height.to_le_bytes());
+        // Only where there is one, so that whole images hash as they did
+        // before files had windows.
+        if let Some(d) = self.window {
+            h.write(b"window");
+            for v in [d.x, d.y, d.full_width as i64, d.full_height as i64] {
+                h.write(&v.to_le_bytes());
+            }
+        }
         let mut channels: Vec<&(String, Plane)> = self.channels.iter().collect();
         channels.sort_by(|a, b| a.0.cmp(&b.0));
         for (name, plane) in channels {

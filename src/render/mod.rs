@@ -412,7 +412,9 @@ fn render_tile(
                 continue;
             }
             let own = counts.own.map(|o| o[i]);
-            let pixel = i as u64;
+            // Numbered in the whole projection, so that a pixel of a
+            // window (a partial base) draws the samples it would uncropped.
+            let pixel = camera.pixel_index(x, y);
             let strata = if from < grid {
                 PixelStrata::new(settings.spp, settings.seed, pixel)
             } else {
@@ -424,7 +426,7 @@ fn render_tile(
             for s in from..to {
                 let mut rng = Pcg32::for_sample(settings.seed, pixel, s as u64);
                 let (dx, dy) = strata.offset(s, rng.next_f32(), rng.next_f32());
-                let Some(ray) = camera.ray(x as f32 + dx, y as f32 + dy) else {
+                let Some(ray) = camera.pixel_ray(x, y, dx, dy) else {
                     batch.push(0.0);
                     continue;
                 };

@@ -4,6 +4,14 @@
 //! 2,544² sphere base takes 168 MB, eight of them 1.35 GB. The bake's
 //! light layers stay in its files: re-shading evaluates direct light anew
 //! and reads only the radiance.
+//!
+//! A partial base holds a window of its projection (see
+//! `bake::window`): its camera carries the window, so its pixel indices,
+//! tiles and blocks count from the window's corner, `camera.ray` and
+//! `camera.project` map them to and from the whole projection, and the
+//! projection's pixel size stays that of the whole image. The window's
+//! corner lies on the block grid, so its tiles and blocks are the whole
+//! image's, in the same order.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -25,6 +33,11 @@ pub const TILE: u32 = 16;
 /// few percent of a sphere base, and testing every tile of the rest cost a
 /// tenth of a frame.
 const BLOCK: u32 = 8;
+
+// A window cornered on the block grid cuts the same tiles and blocks as
+// the whole image: its frames are the whole image's, bit for bit.
+const _: () = assert!(crate::bake::window::ALIGN.is_multiple_of(TILE * BLOCK));
+const _: () = assert!(crate::bake::window::STEP.is_multiple_of(TILE));
 
 /// Point, object id, primitive id (4 bytes each, the point 12) and
 /// radiance (3 half floats).

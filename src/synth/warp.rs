@@ -452,12 +452,13 @@ impl Reach {
 /// The angle a camera's centre pixel subtends (every pixel's, for the
 /// equal-area sphere).
 fn pixel_angle(c: &Camera) -> f32 {
+    let (w, h) = c.full_size();
     match c.projection {
         Projection::Perspective { vfov_deg } => {
-            2.0 * (vfov_deg.to_radians() * 0.5).tan() / c.height as f32
+            2.0 * (vfov_deg.to_radians() * 0.5).tan() / h as f32
         }
-        Projection::Fisheye => std::f32::consts::PI / c.width.min(c.height) as f32,
-        Projection::Sphere => (4.0 * std::f32::consts::PI).sqrt() / c.height as f32,
+        Projection::Fisheye => std::f32::consts::PI / w.min(h) as f32,
+        Projection::Sphere => (4.0 * std::f32::consts::PI).sqrt() / h as f32,
     }
 }
 

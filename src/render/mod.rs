@@ -89,6 +89,8 @@ struct Counts<'a> {
 /// estimated relative error (see [`noise`]), and what they come to.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sampled {
+    /// Samples each pixel drew (a base pixel's include those it left out
+    /// for meeting another object than its centre's).
     pub samples: Vec<u32>,
     pub error: Vec<f32>,
     /// The luminance below which errors are measured against it.
@@ -333,10 +335,10 @@ fn shade_tiles(
     }
     let floor = floor.unwrap_or(0.0);
     let error = noise::relative_errors(w, &moments, floor);
-    let samples: Vec<u32> = moments.iter().map(|m| m.n).collect();
-    let report = NoiseReport::new(&image.object_id, &samples, &error, target);
+    // What each pixel cost: a base pixel draws samples it leaves out.
+    let report = NoiseReport::new(&image.object_id, &drawn, &error, target);
     let sampled = Sampled {
-        samples,
+        samples: drawn,
         error,
         floor,
         report,

@@ -68,6 +68,7 @@ enum rw_indirect
  {
   RW_INDIRECT_RADIOSITY = 0,
   RW_INDIRECT_PATH = 1,
+  RW_INDIRECT_GATHER = 2,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

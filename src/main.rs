@@ -974,12 +974,12 @@ fn bake_command(args: BakeArgs) -> Result<()> {
     );
     match (settings.indirect, summary.radiosity_seconds) {
         (IndirectSource::Path, _) => println!("radiosity skipped: indirect light is traced"),
-        (IndirectSource::Radiosity, Some(t)) => println!("radiosity: solved in {t:.3} s"),
-        (IndirectSource::Radiosity, None) if summary.rendered > 0 || args.prepare => println!(
+        (_, Some(t)) => println!("radiosity: solved in {t:.3} s"),
+        (_, None) if summary.rendered > 0 || args.prepare => println!(
             "radiosity: reused from {}",
             out.join(bake::manifest::RADIOSITY).display()
         ),
-        (IndirectSource::Radiosity, None) => {}
+        (_, None) => {}
     }
     if !s.has_specular() {
         println!("specular rays skipped: no glossy or mirror surfaces");

@@ -99,8 +99,17 @@ pub enum BaseProjection {
 pub enum IndirectSource {
     /// Looked up from radiosity records interpolated in time (§4.3–4.4).
     Radiosity,
+    /// Radiosity records seen through one traced bounce at the surfaces a base shows (a final gather): where surfaces meet, the darkening the records miss.
+    Gather,
     /// Traced: one diffuse bounce per sample continued by the path tracer.
     Path,
+}
+
+impl IndirectSource {
+    /// Whether the bake solves for radiosity records.
+    pub fn uses_records(self) -> bool {
+        matches!(self, Self::Radiosity | Self::Gather)
+    }
 }
 
 /// Everything that decides a bake's images besides its [`Sampling`]. A
@@ -389,7 +398,7 @@ pub fn run_observed(
 
     if !todo.is_empty() {
         let indirect = match settings.indirect {
-            IndirectSource::Radiosity => {
+            IndirectSource::Radiosity | IndirectSource::Gather => {
                 let (s, series, seconds) = radiosity_once(scene, dir, quality, engine, &me)?;
                 summary.radiosity_seconds = seconds;
                 Some((s, series))
@@ -492,7 +501,7 @@ pub fn prepare(
     if setup.anyone().is_none() {
         summary.removed = setup.remove_temporaries()?;
     }
-    if settings.indirect == IndirectSource::Radiosity {
+    if settings.indirect.uses_records() {
         let quality = Quality::new(settings.quality).context("--quality")?;
         summary.radiosity_seconds = radiosity_stage(scene, dir, quality, engine)?.2;
     }
@@ -809,9 +818,10 @@ fn render_image(
     let cache = indirect
         .map(|(s, series)| IrradianceCache::new(s, &series.indirect_at(e.time)))
         .transpose()?;
-    let source = match &cache {
-        Some(c) => Indirect::Records(c),
-        None => Indirect::Traced,
+    let source = match (&cache, settings.indirect) {
+        (Some(c), IndirectSource::Gather) => Indirect::Gathered(c),
+        (Some(c), _) => Indirect::Records(c),
+        (None, _) => Indirect::Traced,
     };
     let out = multipass::render_base(
         scene,

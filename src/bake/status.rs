@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use super::lock::{self, Holder};
 use super::manifest::{self, Manifest, RADIOSITY};
-use super::{sampling, IndirectSource, Shard};
+use super::{sampling, Shard};
 use crate::radiosity::bake as radiosity_bake;
 use crate::render::noise::NoiseReport;
 
@@ -122,7 +122,9 @@ fn noise(dir: &Path, m: &Manifest, missing: &[String]) -> Option<NoiseReport> {
 }
 
 fn radiosity_solved(dir: &Path, m: &Manifest) -> Option<bool> {
-    (m.settings.indirect == IndirectSource::Radiosity)
+    m.settings
+        .indirect
+        .uses_records()
         .then(|| dir.join(RADIOSITY).join(radiosity_bake::MANIFEST).exists())
 }
 

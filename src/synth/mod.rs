@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 use crate::accel::{self, InstancedEngine};
 use crate::alloc;
-use crate::bake::{Bake, IndirectSource};
+use crate::bake::Bake;
 use crate::camera::Camera;
 use crate::image::{RangeImage, RangeMeta, NO_HIT};
 use crate::scene::{Scene, ViewSpace};
@@ -833,8 +833,8 @@ impl<'a> Synthesizer<'a> {
     /// none) or the scene is static (they never change).
     fn records(&mut self) -> Result<Option<Arc<Records>>> {
         if self.records.is_none() {
-            let wanted = self.bake.manifest.settings.indirect == IndirectSource::Radiosity
-                && !self.scene.is_static();
+            let wanted =
+                self.bake.manifest.settings.indirect.uses_records() && !self.scene.is_static();
             let records = if wanted {
                 Some(Arc::new(Records::load(&self.bake.dir, self.scene)?))
             } else {

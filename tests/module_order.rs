@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 /// Lowest first; modules on one line are independent of each other.
 const LAYERS: &[&[&str]] = &[
-    &["rng", "checksum", "ray", "alloc", "output"],
+    &["rng", "checksum", "ray", "alloc", "output", "progress"],
     &["camera"],
     &["image"],
     &["scene"],

@@ -21,7 +21,6 @@ use std::time::Instant;
 
 use anyhow::{bail, ensure, Context, Result};
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 
 use crate::accel::{Backend, InstancedEngine};
@@ -29,6 +28,7 @@ use crate::camera::{Camera, Projection};
 use crate::checksum::Fnv;
 use crate::image::{self, RangeImage};
 use crate::plan::{self, Plan, ViewFitness};
+use crate::progress::{ProgressBar, ProgressStyle};
 use crate::radiosity::lookup::IrradianceCache;
 use crate::radiosity::temporal::TimeSeries;
 use crate::radiosity::{self, bake as radiosity_bake, Quality, Simplified};

@@ -294,9 +294,14 @@ fn subpixels_show_each_surface_by_its_share_where_a_silhouette_crosses_a_pixel()
     // Pixels beside a silhouette (a neighbour shows another object), away
     // from the light, whose rim is traced rather than resampled.
     let mut e = engine(&scene, 0.0);
-    let lit = rangewalk::eval::synthesis::emitter_free(&scene, e.as_mut(), &camera, 0.0)
-        .unwrap()
-        .expect("the light is in view");
+    let lit = rangewalk::eval::experiments::common::synthesize::emitter_free(
+        &scene,
+        e.as_mut(),
+        &camera,
+        0.0,
+    )
+    .unwrap()
+    .expect("the light is in view");
     let edge: Vec<bool> = (0..w * h)
         .map(|k| {
             let (x, y) = (k % w, k / w);

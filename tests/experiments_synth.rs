@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use rangewalk::accel::Backend;
-use rangewalk::eval::experiments::common::bake::{CommonArgs, SequenceArgs};
+use rangewalk::eval::experiments::common::setup::{CommonArgs, SequenceArgs};
 use rangewalk::eval::experiments::motion::{self, MotionArgs};
 use rangewalk::plan::ViewFitness;
 use rangewalk::synth::{Blend, Fill, TimeInterp};

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use rangewalk::accel::Backend;
-use rangewalk::eval::experiments::common::bake::{CommonArgs, SequenceArgs};
 use rangewalk::eval::experiments::common::sequence::SequenceQuality;
+use rangewalk::eval::experiments::common::setup::{CommonArgs, SequenceArgs};
 use rangewalk::eval::experiments::common::synthesize::mean_flip;
 use rangewalk::eval::experiments::walkthrough::{self, BakeViews};
 use rangewalk::eval::experiments::{indirect, motion, views};

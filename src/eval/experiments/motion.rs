@@ -13,11 +13,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 
-use crate::eval::experiments::common::bake::{engine, CommonArgs, SequenceArgs, Shot};
 use crate::eval::experiments::common::plot::{self, Plot, Scale, Series};
 use crate::eval::experiments::common::sequence::{
     differences, modes_list, notes_md, write_sequence, Sequence, SequenceQuality,
 };
+use crate::eval::experiments::common::setup::{engine, CommonArgs, SequenceArgs, Shot};
 use crate::eval::experiments::common::staging::Staging;
 use crate::eval::experiments::common::synthesize::mean_flip;
 use crate::eval::experiments::common::table::cell;

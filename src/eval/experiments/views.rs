@@ -16,12 +16,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{ensure, Context, Result};
 use glam::Vec3;
 
-use crate::eval::experiments::common::bake::{
+use crate::eval::experiments::common::plot::{self, Plot, Scale, Series};
+use crate::eval::experiments::common::sequence::{differences, notes_md};
+use crate::eval::experiments::common::setup::{
     bake_cached, engine, plan_timed, quality_dir, references_of, BakeCost, BakeTiming, CommonArgs,
     Shot,
 };
-use crate::eval::experiments::common::plot::{self, Plot, Scale, Series};
-use crate::eval::experiments::common::sequence::{differences, notes_md};
 use crate::eval::experiments::common::staging::{Staging, BAKES_DIR, REFERENCE_DIR};
 use crate::eval::experiments::common::synthesize::{emitter_free, synthesize, SynthFrame, Truth};
 use crate::eval::experiments::common::table::cell;

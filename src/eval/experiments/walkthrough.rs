@@ -16,7 +16,6 @@ use std::path::{Path, PathBuf};
 use anyhow::{ensure, Result};
 use glam::Vec3;
 
-use crate::eval::experiments::common::bake::{engine, CommonArgs, SequenceArgs, Shot};
 use crate::eval::experiments::common::convergence::{
     break_even, convergence, convergence_series, convergence_table, equal_error_seconds,
     seconds_per_sample, speedup, ConvergencePoint, Measure, Reach, Target,
@@ -25,6 +24,7 @@ use crate::eval::experiments::common::plot::{self, Plot, Scale, Series};
 use crate::eval::experiments::common::sequence::{
     differences, modes_list, notes_md, write_sequence, Measured, ModeRun, Sequence, SequenceQuality,
 };
+use crate::eval::experiments::common::setup::{engine, CommonArgs, SequenceArgs, Shot};
 use crate::eval::experiments::common::staging::Staging;
 use crate::eval::experiments::common::synthesize::mean_flip;
 use crate::eval::experiments::common::table::cell;
@@ -641,8 +641,8 @@ fn error_vs_time_plots(dir: &Path, r: &WalkResults) -> Result<()> {
 mod tests {
     use super::*;
     use crate::accel::Backend;
-    use crate::eval::experiments::common::bake::{BakeCost, BakeTiming};
     use crate::eval::experiments::common::sequence::frames_csv;
+    use crate::eval::experiments::common::setup::{BakeCost, BakeTiming};
     use crate::eval::experiments::common::synthesize::SynthFrame;
     use crate::eval::metrics::ImageError;
     use crate::plan::PlannedView;

@@ -8,11 +8,11 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use glam::Vec3;
 
-use super::bake::{
-    bake_cached, plan_timed, quality_dir, references_of, BakeCost, CommonArgs, Setup, Shot,
-};
 use super::convergence::Measure;
 use super::plot::{self, Series};
+use super::setup::{
+    bake_cached, plan_timed, quality_dir, references_of, BakeCost, CommonArgs, Setup, Shot,
+};
 use super::staging::{BAKES_DIR, REFERENCE_DIR};
 use super::synthesize::{emitter_free, mean_flip, synthesize, SynthFrame, Truth};
 use super::table::{mean, Table};

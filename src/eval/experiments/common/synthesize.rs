@@ -4,7 +4,7 @@
 use anyhow::{Context, Result};
 use glam::Vec3;
 
-use super::bake::Shot;
+use super::setup::Shot;
 use super::table::mean;
 use crate::accel::InstancedEngine;
 use crate::bake::Bake;

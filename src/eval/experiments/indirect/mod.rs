@@ -297,7 +297,7 @@ pub fn frame_times(scene: &Scene, frames: Option<u32>) -> Vec<f32> {
             ((a.end - a.start) * a.fps).round().max(1.0) as u32
         }
     });
-    super::common::bake::spread(a.start, a.end, n)
+    super::common::setup::spread(a.start, a.end, n)
 }
 
 /// What every per-frame loop needs.

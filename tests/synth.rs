@@ -1157,7 +1157,7 @@ fn between_base_times_the_moving_boxes_are_as_right_as_at_a_base_time() {
     };
     let baked = bake_into(&scene, dir.path(), &with_records, ends(&scene, &[0.0, 1.0]));
     let (simplified, series) =
-        rangewalk::radiosity::bake::load(&dir.path().join("radiosity")).unwrap();
+        rangewalk::radiosity::store::load(&dir.path().join("radiosity")).unwrap();
     let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
     let opts = Options {
         time_interp: TimeInterp::Reshade,

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use super::lock::{self, Holder};
 use super::manifest::{self, Manifest, RADIOSITY};
 use super::{sampling, IndirectSource, Shard};
-use crate::radiosity::bake as radiosity_bake;
+use crate::radiosity::store as radiosity_store;
 use crate::render::noise::NoiseReport;
 
 /// What a bake directory holds now.
@@ -123,7 +123,7 @@ fn noise(dir: &Path, m: &Manifest, missing: &[String]) -> Option<NoiseReport> {
 
 fn radiosity_solved(dir: &Path, m: &Manifest) -> Option<bool> {
     (m.settings.indirect == IndirectSource::Radiosity)
-        .then(|| dir.join(RADIOSITY).join(radiosity_bake::MANIFEST).exists())
+        .then(|| dir.join(RADIOSITY).join(radiosity_store::MANIFEST).exists())
 }
 
 /// How many images of `m` are done (as [`status`] counts them).

@@ -7,7 +7,7 @@ use anyhow::{Context, Result};
 use rangewalk::accel::Backend;
 use rangewalk::image;
 use rangewalk::radiosity::temporal::{self, TimeSeries};
-use rangewalk::radiosity::{self, bake as radiosity_bake, Quality, Simplified};
+use rangewalk::radiosity::{self, store as radiosity_store, Quality, Simplified};
 use rangewalk::scene::Scene;
 
 use super::{choice, engine_at_start, load};
@@ -38,7 +38,7 @@ pub fn run(args: RadiosityArgs) -> Result<()> {
     let s = load(&scene)?;
     let mut engine = engine_at_start(&s, backend)?;
     let (simplified, series) = radiosity::simplify_and_decompose(&s, engine.as_mut(), q)?;
-    radiosity_bake::save(&out, &s, &simplified, &series)?;
+    radiosity_store::save(&out, &s, &simplified, &series)?;
     report_radiosity(&s, &simplified, &series);
     println!("bake written to {}", out.display());
     Ok(())

@@ -10,7 +10,7 @@ use rangewalk::camera::Camera;
 use rangewalk::image::{self, RangeImage};
 use rangewalk::radiosity::lookup::IrradianceCache;
 use rangewalk::radiosity::temporal::TimeSeries;
-use rangewalk::radiosity::{self, bake as radiosity_bake, Quality, Simplified};
+use rangewalk::radiosity::{self, store as radiosity_store, Quality, Simplified};
 use rangewalk::render::{self, multipass, RenderSettings, RenderStats};
 use rangewalk::scene::Scene;
 
@@ -72,7 +72,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let Some(dir) = indirect
         .bake
         .as_ref()
-        .filter(|d| !d.join(radiosity_bake::MANIFEST).exists())
+        .filter(|d| !d.join(radiosity_store::MANIFEST).exists())
     {
         image::check_output_dir("--bake", dir)?;
     }
@@ -188,12 +188,12 @@ fn render_multipass(
         .map(|q| Quality::new(q).context("--quality"))
         .transpose()?;
     let (simplified, series) = match &args.bake {
-        Some(dir) if dir.join(radiosity_bake::MANIFEST).exists() => load_bake(s, dir, q)?,
+        Some(dir) if dir.join(radiosity_store::MANIFEST).exists() => load_bake(s, dir, q)?,
         bake_dir => {
             let q = q.unwrap_or(Quality::new(radiosity::DEFAULT_QUALITY)?);
             let (simplified, series) = radiosity::simplify_and_decompose(s, engine, q)?;
             if let Some(dir) = bake_dir {
-                radiosity_bake::save(dir, s, &simplified, &series)?;
+                radiosity_store::save(dir, s, &simplified, &series)?;
                 eprintln!("bake written to {}", dir.display());
             }
             (simplified, series)
@@ -208,7 +208,7 @@ fn render_multipass(
 
 /// A bake made for this scene (at quality `q`, if given).
 fn load_bake(s: &Scene, dir: &Path, q: Option<Quality>) -> Result<(Simplified, TimeSeries)> {
-    let (simplified, series, info) = radiosity_bake::load_for(dir, s, q)?;
+    let (simplified, series, info) = radiosity_store::load_for(dir, s, q)?;
     eprintln!(
         "using the bake in {} (quality {}, {} solutions)",
         dir.display(),

@@ -346,7 +346,7 @@ fn render_direct(
     flip: Option<&crate::eval::flip::Flip>,
 ) -> Result<DirectRun> {
     let (simplified, series) =
-        crate::radiosity::bake::load(&bake.dir.join(crate::bake::manifest::RADIOSITY))?;
+        crate::radiosity::store::load(&bake.dir.join(crate::bake::manifest::RADIOSITY))?;
     let cache = IrradianceCache::new(&simplified, &series.indirect_at(shot.time))?;
     engine.set_transforms(&scene.at(shot.time))?;
     let settings = RenderSettings {

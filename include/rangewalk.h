@@ -420,14 +420,6 @@ rw_status rw_synth_with(const rw_bake *bake,
                         float *rgb,
                         float *distance);
 
-// For tests of the panic boundary only: panics with `message` inside the
-// library and returns `RW_PANIC` (`RW_INVALID_ARGUMENT` if `message` is
-// NULL).
-//
-// # Safety
-// `message` is NULL or a NUL-terminated string.
-rw_status rw_test_panic(const char *message);
-
 // The scene's camera `name` as a view (`look_at` one unit ahead).
 //
 // # Safety

@@ -588,7 +588,7 @@ fn gathered_records_give_path_traced_indirect_light() {
 /// radiosity --bake` reuses it, and refuses one made for another quality.
 mod cli {
     use super::*;
-    use rangewalk::radiosity::bake;
+    use rangewalk::radiosity::store;
     use rangewalk::radiosity::temporal::TimeSeries;
     use rangewalk::radiosity::{IndirectSolution, SolveStats};
     use std::fs;
@@ -624,7 +624,7 @@ mod cli {
             quality: 0.5,
             stats: Default::default(),
         };
-        bake::save(&dir, &scene, &s, &series).unwrap();
+        store::save(&dir, &scene, &s, &series).unwrap();
         let cb = scene_path("cornell-box");
         let out = tmp.path().join("mp.exr");
         let (d, o) = (dir.to_str().unwrap(), out.to_str().unwrap());
@@ -913,7 +913,7 @@ mod with_solver {
         ] {
             assert!(stdout.contains(part), "no `{part}` in:\n{stdout}");
         }
-        let (_, series) = rangewalk::radiosity::bake::load(&dir).unwrap();
+        let (_, series) = rangewalk::radiosity::store::load(&dir).unwrap();
         assert_eq!(series.times.first(), Some(&0.0));
         assert_eq!(series.times.last(), Some(&1.0));
         let out = tmp.path().join("mp.exr");

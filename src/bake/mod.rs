@@ -21,7 +21,6 @@ use std::time::Instant;
 
 use anyhow::{bail, ensure, Context, Result};
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 
 use crate::accel::{Backend, InstancedEngine};
@@ -29,9 +28,10 @@ use crate::camera::{Camera, Projection};
 use crate::checksum::Fnv;
 use crate::image::{self, RangeImage};
 use crate::plan::{self, Plan, ViewFitness};
+use crate::progress::{ProgressBar, ProgressStyle};
 use crate::radiosity::lookup::IrradianceCache;
 use crate::radiosity::temporal::TimeSeries;
-use crate::radiosity::{self, bake as radiosity_bake, Quality, Simplified};
+use crate::radiosity::{self, store as radiosity_store, Quality, Simplified};
 use crate::render::multipass::{self, Indirect};
 use crate::render::noise::NoiseReport;
 use crate::render::{Progress, RenderSettings};
@@ -543,7 +543,7 @@ fn radiosity_once(
 ) -> Result<(Simplified, TimeSeries, Option<f64>)> {
     let solved = || {
         dir.join(manifest::RADIOSITY)
-            .join(radiosity_bake::MANIFEST)
+            .join(radiosity_store::MANIFEST)
             .exists()
     };
     if solved() {
@@ -776,8 +776,8 @@ fn radiosity_stage(
     engine: &mut dyn InstancedEngine,
 ) -> Result<(Simplified, TimeSeries, Option<f64>)> {
     let path = dir.join(manifest::RADIOSITY);
-    if path.join(radiosity_bake::MANIFEST).exists() {
-        let (simplified, series, _) = radiosity_bake::load_for(&path, scene, Some(quality))?;
+    if path.join(radiosity_store::MANIFEST).exists() {
+        let (simplified, series, _) = radiosity_store::load_for(&path, scene, Some(quality))?;
         return Ok((simplified, series, None));
     }
     let start = Instant::now();
@@ -787,7 +787,7 @@ fn radiosity_stage(
     );
     engine.set_transforms(&scene.at(scene.animation.start))?;
     let (simplified, series) = radiosity::simplify_and_decompose(scene, engine, quality)?;
-    radiosity_bake::save(&path, scene, &simplified, &series)?;
+    radiosity_store::save(&path, scene, &simplified, &series)?;
     Ok((simplified, series, Some(start.elapsed().as_secs_f64())))
 }
 

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use super::lock::{self, Holder};
 use super::manifest::{self, Manifest, RADIOSITY};
 use super::{sampling, Shard};
-use crate::radiosity::bake as radiosity_bake;
+use crate::radiosity::store as radiosity_store;
 use crate::render::noise::NoiseReport;
 
 /// What a bake directory holds now.
@@ -125,7 +125,7 @@ fn radiosity_solved(dir: &Path, m: &Manifest) -> Option<bool> {
     m.settings
         .indirect
         .uses_records()
-        .then(|| dir.join(RADIOSITY).join(radiosity_bake::MANIFEST).exists())
+        .then(|| dir.join(RADIOSITY).join(radiosity_store::MANIFEST).exists())
 }
 
 /// How many images of `m` are done (as [`status`] counts them).

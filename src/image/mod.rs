@@ -31,6 +31,7 @@ pub mod exr_io;
 #[allow(unsafe_code)]
 mod oiio;
 mod planes;
+pub mod planes_file;
 pub mod png_io;
 pub mod rgbe;
 mod texture;

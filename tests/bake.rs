@@ -860,3 +860,20 @@ fn a_damaged_missing_or_foreign_planes_file_is_named_when_read_and_rendered_agai
     std::fs::write(planes(1), &before[1][..before[1].len() - 7]).unwrap();
     has(&error(1), &[&name(1), "cut short"]);
 }
+
+#[test]
+fn a_version_5_bake_resumed_renders_what_it_lacks_without_planes_files() {
+    let scene = load(&scene_path("cornell-box"));
+    let tmp = tempfile::tempdir().unwrap();
+    let (new, old) = bake_and_version_5_copy(&scene, tmp.path());
+    let lost = old.dir.join(&old.manifest.images[1].file);
+    std::fs::remove_file(&lost).unwrap();
+    let s = bake_into(&scene, &old.dir, &new.manifest.settings, Shard::ALL);
+    assert_eq!((s.rendered, s.reused, s.complete), (1, 3, true), "{s:?}");
+    assert!(lost.exists());
+    assert!(!bake::manifest::planes_path(&lost).exists());
+    let m = bake::Manifest::read(&old.dir).unwrap();
+    assert_eq!(m.version, 5);
+    let b = bake::Bake::open(&old.dir, &scene).unwrap();
+    assert_eq!(b.read_range(1).unwrap(), new.read_range(1).unwrap());
+}

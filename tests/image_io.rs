@@ -488,3 +488,75 @@ fn a_window_of_a_projection_round_trips_through_both_back_ends() {
         }
     }
 }
+
+#[test]
+fn a_planes_file_round_trips_bit_for_bit_and_names_the_damaged_chunk() {
+    use rangewalk::image::planes_file::{self, CHUNK};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("a.planes");
+    for projection in PROJECTIONS {
+        // A window of a projection: the camera must come back with it.
+        let mut image = sample_image_of(projection, 20, 12);
+        let cropped = image.meta.camera.cropped(9, 4, 7, 5).unwrap();
+        image = RangeImage {
+            meta: RangeMeta {
+                camera: cropped,
+                ..image.meta
+            },
+            ..sample_image(projection)
+        };
+        planes_file::write(&path, &image, "0123456789abcdef").unwrap();
+        assert_eq!(
+            planes_file::read(&path, "0123456789abcdef").unwrap(),
+            image,
+            "{projection:?}"
+        );
+        let e = format!(
+            "{:#}",
+            planes_file::read(&path, "fedcba9876543210").unwrap_err()
+        );
+        assert!(e.contains("a.planes") && e.contains("another image"), "{e}");
+    }
+    // Three chunks a plane; one bit of the second chunk of `distance`
+    // flipped is found, and named.
+    let (w, h) = (300, 500);
+    assert_eq!((w * h as usize).div_ceil(CHUNK), 3);
+    let image = sample_image_of(Projection::Sphere, w as u32, h);
+    planes_file::write(&path, &image, "0123456789abcdef").unwrap();
+    assert_eq!(planes_file::read(&path, "0123456789abcdef").unwrap(), image);
+    let mut bytes = std::fs::read(&path).unwrap();
+    let n = w * h as usize;
+    // The pixels lie at the end: radiance, distance, ids, normals.
+    let distance = bytes.len() - 4 * (3 + 1 + 1 + 1 + 3) * n + 12 * n;
+    let at = distance + 4 * (CHUNK + 5);
+    bytes[at] ^= 0x10;
+    std::fs::write(&path, &bytes).unwrap();
+    let e = format!(
+        "{:#}",
+        planes_file::read(&path, "0123456789abcdef").unwrap_err()
+    );
+    assert!(
+        e.contains("a.planes")
+            && e.contains("chunk 1 of plane `distance`")
+            && e.contains("damaged"),
+        "{e}"
+    );
+    // Cut short, and not a planes file at all.
+    std::fs::write(&path, &bytes[..bytes.len() - 4]).unwrap();
+    let e = format!(
+        "{:#}",
+        planes_file::read(&path, "0123456789abcdef").unwrap_err()
+    );
+    assert!(e.contains("a.planes") && e.contains("cut short"), "{e}");
+    std::fs::write(&path, b"P6 not at all").unwrap();
+    let e = format!(
+        "{:#}",
+        planes_file::read(&path, "0123456789abcdef").unwrap_err()
+    );
+    assert!(e.contains("not a rangewalk planes file"), "{e}");
+    let e = format!(
+        "{:#}",
+        planes_file::read(&dir.path().join("none.planes"), "0123456789abcdef").unwrap_err()
+    );
+    assert!(e.contains("none.planes"), "{e}");
+}

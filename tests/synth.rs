@@ -699,9 +699,10 @@ fn bad_input_is_refused_and_leaves_nothing_half_written() {
     assert!(out.exists());
     std::fs::remove_file(&out).unwrap();
 
-    // A damaged base image: an error naming it, no frame written.
+    // A damaged base image (the planes file synthesis reads): an error
+    // naming it, no frame written.
     let m = bake::Manifest::read(&bake_dir).unwrap();
-    let victim = bake_dir.join(&m.images[0].file);
+    let victim = bake::manifest::planes_path(&bake_dir.join(&m.images[0].file));
     let mut bytes = std::fs::read(&victim).unwrap();
     let n = bytes.len();
     bytes.truncate(n / 2);

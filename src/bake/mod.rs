@@ -388,7 +388,11 @@ pub fn run_observed(
     let mut checked = vec![false; manifest.images.len()];
     for &k in &mine {
         let e = &manifest.images[k];
-        if manifest::verify(&dir.join(&e.file), e.fnv1a64.as_deref()) {
+        if manifest::verify(
+            &dir.join(&e.file),
+            e.fnv1a64.as_deref(),
+            manifest.has_planes(),
+        ) {
             summary.reused += 1;
             checked[k] = true;
         } else {
@@ -850,6 +854,15 @@ fn render_image(
             (DIFFUSE_DIRECT, &out.diffuse_direct),
         ],
     )?;
+    // Bakes of older versions resumed by this one are read from their
+    // EXRs: a planes file there would never be read.
+    if manifest.has_planes() {
+        image::planes_file::write(
+            &manifest::planes_path(&path),
+            &out.image,
+            &manifest::hex(sum),
+        )?;
+    }
     let report = out.sampling.report;
     sampling::write_report(&path, &report)?;
     crate::output::write_file(
@@ -920,14 +933,38 @@ impl Bake {
         })
     }
 
+    /// Image `k`'s range image without its light layers, as synthesis
+    /// reads it: from its planes file, each chunk checked as it is read,
+    /// where the bake has them (version 6 on), else decoded from its EXR
+    /// and checked whole.
+    pub fn read_range(&self, k: usize) -> Result<RangeImage> {
+        if !self.manifest.has_planes() {
+            return Ok(self.read_layers(k, &[])?.0);
+        }
+        let e = self.entry(k)?;
+        let path = manifest::planes_path(&self.dir.join(&e.file));
+        // `open` refuses incomplete bakes: every image has its checksum.
+        let sum = e.fnv1a64.as_deref().unwrap_or_default();
+        let image = image::planes_file::read(&path, sum).map_err(|err| {
+            anyhow::anyhow!(
+                "{err:#}; run the bake again (the same `rangewalk bake` command) to re-render it"
+            )
+        })?;
+        self.check_window(e, &path, &image)?;
+        Ok(image)
+    }
+
+    fn entry(&self, k: usize) -> Result<&ImageEntry> {
+        self.manifest
+            .images
+            .get(k)
+            .with_context(|| format!("{}: no image {k}", self.dir.display()))
+    }
+
     /// Reads image `k` and the named light layers (of [`DIRECT`],
     /// [`INDIRECT`], [`DIFFUSE_DIRECT`]), checking its checksum.
     pub fn read_layers(&self, k: usize, layers: &[&str]) -> Result<(RangeImage, Vec<Vec<Vec3>>)> {
-        let e = self
-            .manifest
-            .images
-            .get(k)
-            .with_context(|| format!("{}: no image {k}", self.dir.display()))?;
+        let e = self.entry(k)?;
         let path = self.dir.join(&e.file);
         let damaged = || {
             anyhow::anyhow!(
@@ -942,6 +979,11 @@ impl Bake {
         if e.fnv1a64.as_deref() != Some(manifest::hex(sum).as_str()) {
             return Err(damaged());
         }
+        self.check_window(e, &path, &image)?;
+        Ok((image, layers))
+    }
+
+    fn check_window(&self, e: &ImageEntry, path: &Path, image: &RangeImage) -> Result<()> {
         // The checksum holds the window the image was written with; the
         // manifest's must be that one, or pixels would be put in the
         // wrong directions.
@@ -958,12 +1000,12 @@ impl Bake {
         if window != Some(&held) || camera.full_size() != (size, size) {
             let (fw, fh) = camera.full_size();
             bail!(
-                "{}: its EXR data window, {held} of a {fw}x{fh} display window, is not the manifest's `windows[{}]`, {} of {size}x{size}: the bake is inconsistent; bake it again into a new directory",
+                "{}: its data window, {held} of a {fw}x{fh} display window, is not the manifest's `windows[{}]`, {} of {size}x{size}: the bake is inconsistent; bake it again into a new directory",
                 path.display(),
                 e.view,
                 window.map_or("absent".to_string(), |w| w.to_string())
             );
         }
-        Ok((image, layers))
+        Ok(())
     }
 }

@@ -1148,7 +1148,7 @@ mod tests {
 
     use super::*;
     use crate::accel::Backend;
-    use crate::bake::{self, BaseProjection, Settings, Shard};
+    use crate::bake::{self, BaseProjection, IndirectSource, Settings, Shard};
     use crate::plan::{Plan, PlannedView};
 
     fn cornell_box() -> Scene {

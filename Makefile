@@ -26,7 +26,7 @@ export RANGEWALK_PYTHON := $(abspath $(PYTHON))
 demo: deps build
 	@rm -rf out/demo out/demo.partial && mkdir -p out/demo.partial
 	@set -o pipefail; { \
-	  $(RW) bake $(DEMO_SCENE) --quality 0.6 --frame-size $(DEMO_SIZE) --spp 8 --out out/demo.partial/bake && \
+	  $(RW) bake $(DEMO_SCENE) --quality 0.6 --frame-size $(DEMO_SIZE) --spp 8 --indirect gather --out out/demo.partial/bake && \
 	  $(RW) walk out/demo.partial/bake --path walk --size $(DEMO_SIZE) --time-interp reshade \
 	    --check-every 5 --check-spp $(DEMO_SPP) --out out/demo.partial/walk && \
 	  $(RW) synth out/demo.partial/bake --camera main --time 0.5 --size $(DEMO_SIZE) --time-interp reshade \

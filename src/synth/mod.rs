@@ -296,6 +296,10 @@ pub struct Synthesizer<'a> {
     /// `Some(None)` where they cannot correct anything (see
     /// [`Synthesizer::records`]).
     records: Option<Option<Arc<Records>>>,
+    /// Whether nearest-first blending leaves out what cannot change a
+    /// pixel ([`WarpSettings::cull`]); always, but where a test shows that
+    /// leaving it out changes nothing.
+    cull: bool,
 }
 
 /// Memory kept for bases by default: eight 2,600² bases fit.
@@ -344,6 +348,7 @@ impl<'a> Synthesizer<'a> {
             buffers: kept.buffers,
             records: kept.records,
             spare: None,
+            cull: true,
         }
     }
 
@@ -571,6 +576,7 @@ impl<'a> Synthesizer<'a> {
             blend: opts.blend,
             alpha: matches!(opts.time_interp, TimeInterp::Linear | TimeInterp::Reshade),
             sky: !background,
+            cull: self.cull,
         };
         let poses_t = self.scene.at(t);
         let moves_of = |base: &Base| -> Vec<Option<Affine3A>> {
@@ -1144,7 +1150,6 @@ pub fn check_bake(bake: &Bake) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
-    use std::sync::atomic::Ordering;
 
     use super::*;
     use crate::accel::Backend;
@@ -1232,12 +1237,11 @@ mod tests {
                 ..Options::default()
             };
             let mut frame = |skip: bool| {
-                warp::tests::NO_CULLING.store(!skip, Ordering::Relaxed);
+                synth.cull = skip;
                 synth.frame(&camera, t, &opts).unwrap()
             };
             let (skipped, with) = frame(true);
             let (kept, without) = frame(false);
-            warp::tests::NO_CULLING.store(false, Ordering::Relaxed);
             let case = format!("{size}² at {at}, t = {t}, {time_interp}, {supersample}²");
             assert!(with.hidden > 0, "{case}: nothing was skipped");
             assert_eq!(without.hidden, 0, "{case}");

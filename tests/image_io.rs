@@ -443,20 +443,26 @@ fn textures_declaring_huge_sizes_are_refused_by_name() {
     assert!(message.contains("than the 67108864"), "{message}");
 }
 
+/// The sample image of `projection` as a 7x5 window at (9, 4) of a 20x12
+/// projection, and the window's camera.
+fn windowed_sample_image(projection: Projection) -> (RangeImage, Camera) {
+    let image = sample_image_of(projection, 20, 12);
+    let cropped = image.meta.camera.cropped(9, 4, 7, 5).unwrap();
+    let image = RangeImage {
+        meta: RangeMeta {
+            camera: cropped,
+            ..image.meta
+        },
+        ..sample_image(projection)
+    };
+    (image, cropped)
+}
+
 #[test]
 fn a_window_of_a_projection_round_trips_through_both_back_ends() {
     let dir = tempfile::tempdir().unwrap();
     for projection in PROJECTIONS {
-        // A 7x5 window at (9, 4) of a 20x12 projection.
-        let mut image = sample_image_of(projection, 20, 12);
-        let cropped = image.meta.camera.cropped(9, 4, 7, 5).unwrap();
-        image = RangeImage {
-            meta: RangeMeta {
-                camera: cropped,
-                ..image.meta
-            },
-            ..sample_image(projection)
-        };
+        let (image, cropped) = windowed_sample_image(projection);
         let (a, b) = (dir.path().join("a.exr"), dir.path().join("b.exr"));
         write_exr(&a, &image).unwrap();
         exr_io::write(&b, &image).unwrap();
@@ -496,15 +502,7 @@ fn a_planes_file_round_trips_bit_for_bit_and_names_the_damaged_chunk() {
     let path = dir.path().join("a.planes");
     for projection in PROJECTIONS {
         // A window of a projection: the camera must come back with it.
-        let mut image = sample_image_of(projection, 20, 12);
-        let cropped = image.meta.camera.cropped(9, 4, 7, 5).unwrap();
-        image = RangeImage {
-            meta: RangeMeta {
-                camera: cropped,
-                ..image.meta
-            },
-            ..sample_image(projection)
-        };
+        let (image, _) = windowed_sample_image(projection);
         planes_file::write(&path, &image, "0123456789abcdef").unwrap();
         assert_eq!(
             planes_file::read(&path, "0123456789abcdef").unwrap(),

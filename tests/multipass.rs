@@ -770,16 +770,7 @@ mod with_solver {
                 .image
                 .radiance
             });
-            let n = a.len() as f64;
-            let mean = a.iter().chain(&b).map(|&v| luminance(v)).sum::<f64>() / (2.0 * n);
-            // Var(a_i - b_i) = 2 Var(a_i): the variance of the two images'
-            // mean is Σ (a_i - b_i)² / 4 / n².
-            let sq: f64 = a
-                .iter()
-                .zip(&b)
-                .map(|(&x, &y)| (luminance(x) - luminance(y)).powi(2))
-                .sum();
-            (mean, sq.sqrt() / (2.0 * n))
+            mean_of_two(&a, &b, &vec![true; a.len()])
         };
         let (ours, e1) = mean_and_error(multipass::Indirect::Records(&cache));
         let (traced, e2) = mean_and_error(multipass::Indirect::Traced);
@@ -792,6 +783,24 @@ mod with_solver {
             (ours - traced).abs() <= 0.02 * traced + 3.0 * sigma,
             "records {ours} vs traced bounce {traced} ± {sigma}"
         );
+    }
+
+    /// The mean luminance over the pixels `mask` picks of two renders of
+    /// one image with other seeds, `a` and `b`, and its standard error:
+    /// Var(a_i - b_i) = 2 Var(a_i), so the variance of the two images'
+    /// mean is Σ (a_i - b_i)² / 4 / n².
+    fn mean_of_two(a: &[Vec3], b: &[Vec3], mask: &[bool]) -> (f64, f64) {
+        let pairs: Vec<(f64, f64)> = a
+            .iter()
+            .zip(b)
+            .zip(mask)
+            .filter(|(_, &m)| m)
+            .map(|((&x, &y), _)| (luminance(x), luminance(y)))
+            .collect();
+        let n = pairs.len() as f64;
+        let mean = pairs.iter().map(|(x, y)| x + y).sum::<f64>() / (2.0 * n);
+        let sq: f64 = pairs.iter().map(|(x, y)| (x - y).powi(2)).sum();
+        (mean, sq.sqrt() / (2.0 * n))
     }
 
     /// Records hold each element's mean light, so where two walls meet
@@ -854,17 +863,7 @@ mod with_solver {
         let all = vec![true; corner.len()];
         let mean_and_error = |indirect: multipass::Indirect, mask: &[bool]| {
             let [a, b] = [1, 2].map(|seed| render(indirect, seed).radiance);
-            let pairs: Vec<(f64, f64)> = a
-                .iter()
-                .zip(&b)
-                .zip(mask)
-                .filter(|(_, &m)| m)
-                .map(|((&x, &y), _)| (luminance(x), luminance(y)))
-                .collect();
-            let n = pairs.len() as f64;
-            let mean = pairs.iter().map(|(x, y)| x + y).sum::<f64>() / (2.0 * n);
-            let sq: f64 = pairs.iter().map(|(x, y)| (x - y).powi(2)).sum();
-            (mean, sq.sqrt() / (2.0 * n))
+            mean_of_two(&a, &b, mask)
         };
         for (what, mask) in [("image", &all), ("corners", &corner)] {
             let (gathered, e1) = mean_and_error(multipass::Indirect::Gathered(&cache), mask);

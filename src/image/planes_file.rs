@@ -218,12 +218,15 @@ pub fn write(path: &Path, image: &RangeImage, image_sum: &str) -> Result<()> {
     write_atomically(path, |tmp| {
         let file = File::create(tmp).with_context(|| format!("creating {}", tmp.display()))?;
         let mut out = BufWriter::with_capacity(1 << 20, file);
+        // Still an I/O error, worded for the person who asked for the file,
+        // so that the C API reports it as one (`RW_IO`).
         let fail = |e: std::io::Error| {
-            anyhow!(
+            let words = format!(
                 "{}: cannot write: {}",
                 tmp.display(),
                 super::write_error::describe(&e)
-            )
+            );
+            anyhow::Error::new(std::io::Error::new(e.kind(), words))
         };
         out.write_all(MAGIC).map_err(fail)?;
         out.write_all(&(json.len() as u32).to_le_bytes())

@@ -743,33 +743,11 @@ mod with_solver {
     #[test]
     fn studio_records_agree_with_a_traced_bounce() {
         let scene = load("studio");
-        let q = Quality::new(0.6).unwrap();
-        let mut engine = accel::build(
-            Backend::default_available(),
-            &scene.geometry(),
-            &scene.at(0.0),
-        )
-        .unwrap();
-        let s = rangewalk::radiosity::simplify(&scene, engine.as_mut(), q).unwrap();
-        let solution = solve(&scene, &s, engine.as_ref(), 0.0, q).unwrap();
-        let cache = IrradianceCache::new(&s, &solution.indirect).unwrap();
+        let (engine, cache) = solved_at_start(&scene);
         let cam = camera(&scene, 32);
         let mean_and_error = |indirect: multipass::Indirect| {
-            let [a, b] = [1, 2].map(|seed| {
-                multipass::render_layers(
-                    &scene,
-                    engine.as_ref(),
-                    &cam,
-                    0.0,
-                    &settings(128, None, seed),
-                    indirect,
-                    None,
-                    render::Progress::Tiles,
-                )
-                .unwrap()
-                .image
-                .radiance
-            });
+            let [a, b] = [1, 2]
+                .map(|seed| render_128_spp(&scene, engine.as_ref(), &cam, indirect, seed).radiance);
             mean_of_two(&a, &b, &vec![true; a.len()])
         };
         let (ours, e1) = mean_and_error(multipass::Indirect::Records(&cache));
@@ -783,6 +761,44 @@ mod with_solver {
             (ours - traced).abs() <= 0.02 * traced + 3.0 * sigma,
             "records {ours} vs traced bounce {traced} ± {sigma}"
         );
+    }
+
+    /// A ray engine of `scene` posed at t = 0 and the records of its
+    /// radiosity solved there at q = 0.6.
+    fn solved_at_start(scene: &Scene) -> (Box<dyn accel::InstancedEngine>, IrradianceCache) {
+        let q = Quality::new(0.6).unwrap();
+        let mut engine = accel::build(
+            Backend::default_available(),
+            &scene.geometry(),
+            &scene.at(0.0),
+        )
+        .unwrap();
+        let s = rangewalk::radiosity::simplify(scene, engine.as_mut(), q).unwrap();
+        let solution = solve(scene, &s, engine.as_ref(), 0.0, q).unwrap();
+        let cache = IrradianceCache::new(&s, &solution.indirect).unwrap();
+        (engine, cache)
+    }
+
+    /// The multipass render of `cam` at t = 0, 128 spp, with `seed`.
+    fn render_128_spp(
+        scene: &Scene,
+        engine: &dyn rangewalk::accel::RayEngine,
+        cam: &Camera,
+        indirect: multipass::Indirect,
+        seed: u64,
+    ) -> RangeImage {
+        multipass::render_layers(
+            scene,
+            engine,
+            cam,
+            0.0,
+            &settings(128, None, seed),
+            indirect,
+            None,
+            render::Progress::Tiles,
+        )
+        .unwrap()
+        .image
     }
 
     /// The mean luminance over the pixels `mask` picks of two renders of
@@ -816,31 +832,11 @@ mod with_solver {
     #[test]
     fn gathered_records_keep_the_darkening_where_walls_meet() {
         let scene = load("cornell-box");
-        let q = Quality::new(0.6).unwrap();
-        let mut engine = accel::build(
-            Backend::default_available(),
-            &scene.geometry(),
-            &scene.at(0.0),
-        )
-        .unwrap();
-        let s = rangewalk::radiosity::simplify(&scene, engine.as_mut(), q).unwrap();
-        let solution = solve(&scene, &s, engine.as_ref(), 0.0, q).unwrap();
-        let cache = IrradianceCache::new(&s, &solution.indirect).unwrap();
+        let (engine, cache) = solved_at_start(&scene);
         let cam = camera(&scene, 64);
         let (lo, hi) = scene.bounds(0.0);
         let render = |indirect: multipass::Indirect, seed: u64| {
-            multipass::render_layers(
-                &scene,
-                engine.as_ref(),
-                &cam,
-                0.0,
-                &settings(128, None, seed),
-                indirect,
-                None,
-                render::Progress::Tiles,
-            )
-            .unwrap()
-            .image
+            render_128_spp(&scene, engine.as_ref(), &cam, indirect, seed)
         };
         // Pixels whose first hit lies within 20 mm of two of the room's
         // five walls (the front is open).

@@ -119,8 +119,9 @@ fn field(name: &str) -> String {
 }
 
 impl rw_synth_options {
-    /// The synthesis options and the memory budget in bytes.
-    fn options(&self) -> Result<(Options, usize), Failure> {
+    /// The synthesis options, validated for frames of `size`, and the
+    /// memory budget in bytes.
+    fn options(&self, size: (u32, u32)) -> Result<(Options, usize), Failure> {
         let bad = |field: &str, value: String, want: &str| {
             Failure::invalid(format!("options->{field} {value} {want}"))
         };
@@ -179,7 +180,7 @@ impl rw_synth_options {
             filter,
         };
         options
-            .check(&field)
+            .validate(size, &field)
             .map_err(|e| Failure::invalid(format!("{e:#}")))?;
         Ok((options, budget))
     }
@@ -269,10 +270,7 @@ pub unsafe extern "C" fn rw_synth_with(
             .scene
             .check_time(time)
             .map_err(|e| Failure::invalid(format!("{e:#}")))?;
-        let (options, budget) = options.options()?;
-        options
-            .check_frame_size(width, height, &field)
-            .map_err(|e| Failure::invalid(format!("{e:#}")))?;
+        let (options, budget) = options.options((width, height))?;
         let camera = view.camera(width, height)?;
         let kept = {
             let mut pool = handle.kept.lock().unwrap_or_else(|e| e.into_inner());

@@ -96,8 +96,7 @@ impl SynthOptions {
             supersample: self.supersample,
             filter: self.filter,
         };
-        options.check(&flag)?;
-        options.check_frame_size(size.0, size.1, &flag)?;
+        options.validate(size, &flag)?;
         Ok(options)
     }
 
@@ -185,7 +184,9 @@ pub fn synth(args: &SynthArgs) -> Result<()> {
         )?;
     }
     let mut extra = String::new();
-    if options.time_interp == TimeInterp::Reshade {
+    if stats.plan.reshade && !stats.plan.direct {
+        extra += ", light not drawn again (the frame is at its bases' times, or nothing in the scene moves)";
+    } else if stats.plan.reshade {
         extra += &format!(
             ", {} pixel(s) whose light changed since the base times re-shaded with {} light samples, \
              diffuse indirect light {}, {} mirror pixel(s) no base showed",

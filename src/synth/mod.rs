@@ -19,7 +19,7 @@ use crate::accel::{self, InstancedEngine};
 use crate::alloc;
 use crate::bake::Bake;
 use crate::camera::Camera;
-use crate::image::{RangeImage, RangeMeta, NO_HIT};
+use crate::image::{RangeImage, RangeMeta};
 use crate::scene::{Scene, ViewSpace};
 
 pub mod base;
@@ -27,221 +27,20 @@ mod cells;
 mod fill;
 mod indirect;
 mod lights;
+mod options;
+mod pixels;
 mod reshade;
 pub mod walk;
 mod warp;
 
 pub use base::{Base, BaseCache, BYTES_PER_PIXEL};
 use indirect::Records;
-use warp::{Accum, Pass, Target, Twin, WarpSettings, SKY_Z};
-pub use warp::{Blend, Filter};
-
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    serde::Serialize,
-    strum::Display,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
-#[serde(rename_all = "lowercase")]
-#[strum(serialize_all = "lowercase")]
-pub enum Fill {
-    /// A base pixel lands on at most one frame pixel; holes stay empty.
-    None,
-    /// Each base pixel covers the parallelogram to its right and lower
-    /// neighbours' projections, where their depths agree.
-    Foreground,
-    /// Holes take the farther of their nearest filled neighbours.
-    Background,
-    /// Foreground, then background.
-    Both,
-}
-
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    serde::Serialize,
-    strum::Display,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
-#[serde(rename_all = "lowercase")]
-#[strum(serialize_all = "lowercase")]
-pub enum TimeInterp {
-    /// Each time's frame projected alone, blended per pixel (the paper's).
-    Linear,
-    /// Samples moved by their object's motion to the frame's time and
-    /// projected together.
-    Motion,
-    /// Motion-compensated, with the diffuse direct light evaluated again at
-    /// the frame's time and mirrors traced again.
-    Reshade,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Options {
-    pub fill: Fill,
-    pub time_interp: TimeInterp,
-    /// How many base views, nearest first.
-    pub bases: usize,
-    pub blend: Blend,
-    /// Relative depth tolerance (pinterp's `-t`, default 0.02).
-    pub tolerance: f32,
-    /// Farthest a background fill carries a value, in pixels.
-    pub fill_reach: u16,
-    /// Light samples per pixel when re-shading, where the light changed
-    /// since the base times (elsewhere [`reshade::FIND_SAMPLES`] find that
-    /// it did not).
-    pub reshade_samples: u32,
-    /// Rays per side of a pixel at or beside a light or a silhouette
-    /// against the sky ([`lights`]); 0: none.
-    pub light_rays: u32,
-    pub seed: u64,
-    /// Side of the grid of subpixels each frame pixel is synthesized as
-    /// and then averaged from (1: none). A z-buffer gives each of its
-    /// pixels one surface, so a pixel a silhouette crosses shows the
-    /// nearer surface whole where the reference shows both by the share
-    /// each covers: thin objects thicken and close the gaps between them.
-    /// Subpixels resolve that share. Only splatting fills (`foreground`,
-    /// `both`) use them.
-    pub supersample: u32,
-    /// Which pixels a splat reaches (see [`Filter`]).
-    pub filter: Filter,
-}
-
-impl Default for Options {
-    fn default() -> Self {
-        Self {
-            fill: Fill::Both,
-            time_interp: TimeInterp::Motion,
-            bases: 4,
-            blend: Blend::Average,
-            tolerance: 0.02,
-            fill_reach: 32,
-            reshade_samples: 64,
-            light_rays: 8,
-            seed: 1,
-            supersample: 2,
-            filter: Filter::Box,
-        }
-    }
-}
-
-/// The most rays per side of a pixel at a light's rim ([`lights`]): 32²
-/// rays resolve the share of a pixel a light covers to a thousandth, finer
-/// than any preview or error measure shows, at about a thousand rays for
-/// each rim pixel; 100,000 asked for 10¹⁰ rays a pixel and never finished.
-pub const MAX_LIGHT_RAYS: u32 = 32;
-
-/// The most light samples a pixel takes when re-shading: three sets of
-/// shadow rays a pixel (one for the frame's time and one for each base
-/// time), so 256 traces some 200 million rays for a 512² frame, more than
-/// path tracing it at a few samples a pixel: beyond that re-shading is no
-/// longer what synthesis is for.
-pub const MAX_RESHADE_SAMPLES: u32 = 256;
-
-/// The most base views a frame projects: each gives a pass per base time
-/// it takes (two at most), and a z-buffer entry names its pass in
-/// [`warp::MAX_PASSES`].
-pub const MAX_BASES: usize = warp::MAX_PASSES / 2;
-
-/// The most subpixels a frame is synthesized at: the pixels a range image
-/// may hold ([`crate::image::MAX_PIXELS`], 8192²). A subpixel's z-buffer
-/// entry alone takes 48 bytes, so this is about 3.2 GB before the frame.
-pub const MAX_SUBPIXELS: u64 = crate::image::MAX_PIXELS;
-
-impl Options {
-    /// Refuses values that make no frame or unbounded work. `name` turns a
-    /// field's name (`light_rays`) into what the caller calls it (the
-    /// flag `--light-rays`, the C field `options->light_rays`), so that
-    /// each front end reports its own names from one set of limits.
-    pub fn check(&self, name: &dyn Fn(&str) -> String) -> Result<()> {
-        ensure!(
-            self.bases > 0,
-            "{} 0: synthesis needs at least 1 base view",
-            name("bases")
-        );
-        ensure!(
-            self.bases <= MAX_BASES,
-            "{} {} must lie in 1..={MAX_BASES}",
-            name("bases"),
-            self.bases
-        );
-        ensure!(
-            self.tolerance > 0.0 && self.tolerance < 1.0,
-            "{} {} must lie in (0, 1): it is the relative depth difference within which samples join",
-            name("tolerance"),
-            self.tolerance
-        );
-        ensure!(
-            (1..=MAX_RESHADE_SAMPLES).contains(&self.reshade_samples),
-            "{} {} must lie in 1..={MAX_RESHADE_SAMPLES}: each sample is three shadow rays a pixel, \
-             and more than {MAX_RESHADE_SAMPLES} costs more than path tracing the frame",
-            name("reshade_samples"),
-            self.reshade_samples
-        );
-        ensure!(
-            self.light_rays <= MAX_LIGHT_RAYS,
-            "{} {} must lie in 0..={MAX_LIGHT_RAYS}: it is rays per side of each pixel at a light's rim \
-             ({}² of them), and {MAX_LIGHT_RAYS}² already resolve a pixel's share of the light to a thousandth",
-            name("light_rays"),
-            self.light_rays,
-            self.light_rays
-        );
-        ensure!(
-            (1..=MAX_SUPERSAMPLE).contains(&self.supersample),
-            "{} {} must lie in 1..={MAX_SUPERSAMPLE}",
-            name("supersample"),
-            self.supersample
-        );
-        Ok(())
-    }
-
-    /// The subpixels per side a frame is synthesized at: only splatting
-    /// fills use them (see [`Options::supersample`]).
-    pub fn subpixels_per_side(&self) -> u32 {
-        if matches!(self.fill, Fill::Foreground | Fill::Both) {
-            self.supersample
-        } else {
-            1
-        }
-    }
-
-    /// Refuses a `width` × `height` frame whose subpixels exceed
-    /// [`MAX_SUBPIXELS`]: the frame size alone does not say how much a
-    /// frame holds, its supersampling squares it. `name` as in
-    /// [`Options::check`].
-    pub fn check_frame_size(
-        &self,
-        width: u32,
-        height: u32,
-        name: &dyn Fn(&str) -> String,
-    ) -> Result<()> {
-        let k = u64::from(self.subpixels_per_side());
-        let n = u64::from(width) * k * u64::from(height) * k;
-        ensure!(
-            n <= MAX_SUBPIXELS,
-            "a {width}x{height} frame at {k}x{k} supersampling ({} {k}) is {n} subpixels, more than the \
-             {MAX_SUBPIXELS} (8192x8192) a frame may be synthesized at (about {} of z-buffer); \
-             make the frame or {} smaller",
-            name("supersample"),
-            alloc::bytes(n.saturating_mul(size_of::<Accum>() as u64)),
-            name("supersample")
-        );
-        Ok(())
-    }
-}
+pub use options::{
+    Blend, Fill, Filter, Options, TimeInterp, TimePlan, MAX_BASES, MAX_LIGHT_RAYS,
+    MAX_RESHADE_SAMPLES, MAX_SUBPIXELS, MAX_SUPERSAMPLE,
+};
+use pixels::{blank, blend_linear, downsample, surface, write_pixels};
+use warp::{Accum, Pass, Target, Twin, WarpSettings};
 
 /// What making one frame took and found.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -252,6 +51,8 @@ pub struct FrameStats {
     pub load_seconds: f64,
     /// Manifest indices of the base images used.
     pub images: Vec<usize>,
+    /// How the frame's time was brought from theirs.
+    pub plan: TimePlan,
     /// Pixels no sample reached and no fill filled.
     pub holes: usize,
     /// Pixels filled by background fill.
@@ -300,6 +101,15 @@ pub struct Synthesizer<'a> {
     /// pixel ([`WarpSettings::cull`]); always, but where a test shows that
     /// leaving it out changes nothing.
     cull: bool,
+}
+
+/// What a frame projects and how its time is brought from theirs,
+/// chosen once for all its subpixels.
+struct Chosen {
+    /// Manifest image, its weight in time, and whether it is the later of
+    /// its view's two times.
+    wanted: Vec<(usize, f32, bool)>,
+    plan: TimePlan,
 }
 
 /// Memory kept for bases by default: eight 2,600² bases fit.
@@ -429,14 +239,15 @@ impl<'a> Synthesizer<'a> {
         opts: &Options,
     ) -> Result<(RangeImage, FrameStats)> {
         let field = |f: &str| format!("options.{f}");
-        opts.check(&field)?;
-        opts.check_frame_size(camera.width, camera.height, &field)?;
+        opts.validate((camera.width, camera.height), &field)?;
+        self.scene.check_time(t)?;
+        let chosen = self.choose(camera.position, t, opts)?;
         // Without splats a sample lands on one subpixel: subpixels would
         // only thin the samples out, and a background fill would give most
         // of them the farther surface beside them.
         let k = opts.subpixels_per_side();
         if k == 1 {
-            let (image, stats) = self.subpixels(camera, 1, t, opts, true)?;
+            let (image, stats) = self.subpixels(camera, 1, t, opts, &chosen, true)?;
             return Ok((image.expect("asked for"), stats));
         }
         let fine_camera = Camera {
@@ -456,8 +267,9 @@ impl<'a> Synthesizer<'a> {
         };
         // Re-shading works on the subpixels' surfaces; otherwise the frame
         // is averaged from the z-buffer itself.
-        let reshade = opts.time_interp == TimeInterp::Reshade;
-        let (fine_image, mut stats) = self.subpixels(&fine_camera, k, t, &fine, reshade)?;
+        let reshade = chosen.plan.reshade;
+        let (fine_image, mut stats) =
+            self.subpixels(&fine_camera, k, t, &fine, &chosen, reshade)?;
         let start = Instant::now();
         let poses = self.scene.at(t);
         let spare = self.spare_for(camera);
@@ -528,25 +340,12 @@ impl<'a> Synthesizer<'a> {
         }
     }
 
-    /// The frame at the camera's own resolution, its z-buffer left in
-    /// `buffers[0]`; its range image only when `image` is asked for.
-    /// `camera` is the frame's at `k` × `k` subpixels a pixel (for
-    /// messages).
-    fn subpixels(
-        &mut self,
-        camera: &Camera,
-        k: u32,
-        t: f32,
-        opts: &Options,
-        image: bool,
-    ) -> Result<(Option<RangeImage>, FrameStats)> {
-        self.scene.check_time(t)?;
-        let start = Instant::now();
-        let load_before = self.cache.load_seconds;
-        let views = self.nearest_views(camera.position, opts.bases);
-        // (manifest image, weight in time, whether it is the later time)
+    /// The base images a frame at `position` and `t` projects (nearest
+    /// view first, each view's nearer time first) and the plan its time
+    /// follows.
+    fn choose(&self, position: Vec3, t: f32, opts: &Options) -> Result<Chosen> {
         let mut wanted: Vec<(usize, f32, bool)> = Vec::new();
-        for &v in &views {
+        for &v in &self.nearest_views(position, opts.bases) {
             let (lo, hi) = self.bracket(v, t)?;
             match hi {
                 None => wanted.push((lo, 1.0, false)),
@@ -562,9 +361,35 @@ impl<'a> Synthesizer<'a> {
                 }
             }
         }
+        let images = &self.bake.manifest.images;
+        let times: Vec<f32> = wanted
+            .iter()
+            .map(|w| self.bake.manifest.plan.views[images[w.0].view].times[images[w.0].time_index])
+            .collect();
+        let plan = TimePlan::new(opts.time_interp, t, &times, !self.scene.is_static());
+        Ok(Chosen { wanted, plan })
+    }
+
+    /// The frame at the camera's own resolution, its z-buffer left in
+    /// `buffers[0]`; its range image only when `image` is asked for.
+    /// `camera` is the frame's at `k` × `k` subpixels a pixel (for
+    /// messages).
+    fn subpixels(
+        &mut self,
+        camera: &Camera,
+        k: u32,
+        t: f32,
+        opts: &Options,
+        chosen: &Chosen,
+        image: bool,
+    ) -> Result<(Option<RangeImage>, FrameStats)> {
+        let start = Instant::now();
+        let load_before = self.cache.load_seconds;
+        let Chosen { wanted, plan } = chosen;
+        let plan = *plan;
         let keep: Vec<usize> = wanted.iter().map(|w| w.0).collect();
         let mut bases: Vec<Arc<Base>> = Vec::with_capacity(wanted.len());
-        for &(k, _, _) in &wanted {
+        for &(k, _, _) in wanted {
             bases.push(self.cache.get(self.bake, self.scene, k, &keep)?);
         }
         let target = Target::new(*camera);
@@ -574,13 +399,13 @@ impl<'a> Synthesizer<'a> {
             splat: matches!(opts.fill, Fill::Foreground | Fill::Both),
             filter: opts.filter,
             blend: opts.blend,
-            alpha: matches!(opts.time_interp, TimeInterp::Linear | TimeInterp::Reshade),
+            alpha: plan.alpha,
             sky: !background,
             cull: self.cull,
         };
         let poses_t = self.scene.at(t);
         let moves_of = |base: &Base| -> Vec<Option<Affine3A>> {
-            if opts.time_interp == TimeInterp::Linear {
+            if !plan.moved {
                 return Vec::new();
             }
             self.scene
@@ -596,6 +421,7 @@ impl<'a> Synthesizer<'a> {
         let n = (w * h) as usize;
         let mut stats = FrameStats {
             images: keep.clone(),
+            plan,
             ..FrameStats::default()
         };
         // The holes a buffer has left after the sky's; background fill
@@ -621,13 +447,13 @@ impl<'a> Synthesizer<'a> {
         };
         // Stale contents are cleared band by band as they are projected.
         alloc::resize(&mut first, n, Accum::default(), z_buffer(""))?;
-        let pixels: Vec<Accum> = if opts.time_interp == TimeInterp::Linear {
+        let pixels: Vec<Accum> = if plan.apart {
             // pinterp per time, then pcomb: two frames blended per pixel.
             alloc::resize(&mut second, n, Accum::default(), z_buffer("second "))?;
             let passes = |later: bool| -> Vec<Pass> {
                 bases
                     .iter()
-                    .zip(&wanted)
+                    .zip(wanted)
                     .filter(|(_, w)| w.2 == later)
                     .map(|(b, &(_, weight, _))| Pass {
                         base: b,
@@ -719,16 +545,12 @@ impl<'a> Synthesizer<'a> {
         let spare = self.spare_for(camera);
         let mut image = blank(spare, self.frame_meta(camera, t, opts, bases.len()))?;
         write_pixels(self.scene, &poses_t, &pixels, &mut image);
-        if opts.time_interp == TimeInterp::Reshade {
+        if plan.reshade {
             let scene = self.scene;
             let mut times: Vec<f32> = bases.iter().map(|b| b.time).collect();
             times.sort_by(f32::total_cmp);
             times.dedup();
             let (w, cam) = (camera.width as usize, camera.position);
-            // Every pixel first takes a few samples at every time, which
-            // find where the light changed; there the frame's and the base
-            // times' light are drawn again with all of `reshade_samples`.
-            let find = reshade::FIND_SAMPLES.div_ceil(k * k);
             let plane = |what: &str| reshade::light_plane(pixels.len(), w, what);
             let mut now = plane("the frame's time")?;
             let mut then = Vec::with_capacity(times.len());
@@ -737,31 +559,17 @@ impl<'a> Synthesizer<'a> {
             }
             // The frame's time first, then every base time.
             let all_times: Vec<f32> = std::iter::once(t).chain(times.iter().copied()).collect();
-            let (mut samples, mut only) = (find, None::<Vec<bool>>);
-            loop {
-                for (i, &time) in all_times.iter().enumerate() {
-                    let engine = &*self.engine_at(time)?;
-                    let out = if i == 0 { &mut now } else { &mut then[i - 1] };
-                    reshade::direct_at(
-                        scene,
-                        engine,
-                        t,
-                        time,
-                        &pixels,
-                        w,
-                        cam,
-                        samples,
-                        opts.seed,
-                        only.as_deref(),
-                        out,
-                    )?;
-                }
-                if only.is_some() || opts.reshade_samples <= find {
-                    break;
-                }
-                let changed = reshade::changed(&now, &then, w, k as usize);
-                stats.reshaded = changed.iter().filter(|&&c| c).count();
-                (samples, only) = (opts.reshade_samples, Some(changed));
+            // Without it every change found would be nought: the planes
+            // stay dark and the bases' light is kept as it is.
+            if plan.direct {
+                stats.reshaded = self.light_at_times(
+                    (&pixels, w, cam, k),
+                    t,
+                    &all_times,
+                    opts,
+                    &mut now,
+                    &mut then,
+                )?;
             }
             let records = self.records()?;
             if let Some(r) = &records {
@@ -796,6 +604,53 @@ impl<'a> Synthesizer<'a> {
         stats.load_seconds = self.cache.load_seconds - load_before;
         stats.seconds = start.elapsed().as_secs_f64();
         Ok((Some(image), stats))
+    }
+
+    /// The diffuse direct light of `pixels` (a frame of width `w` seen
+    /// from `cam`, `k` × `k` subpixels a pixel, at `t`) at the frame's time
+    /// into `now` and at every base time into `then` (`times`: the frame's
+    /// first). Every pixel first takes a few samples at every time, which
+    /// find where the light changed; there the frame's and the base times'
+    /// light are drawn again with all of `reshade_samples`. Returns how
+    /// many pixels were.
+    fn light_at_times(
+        &mut self,
+        (pixels, w, cam, k): (&[Accum], usize, Vec3, u32),
+        t: f32,
+        times: &[f32],
+        opts: &Options,
+        now: &mut [Vec3],
+        then: &mut [Vec<Vec3>],
+    ) -> Result<usize> {
+        let scene = self.scene;
+        let find = reshade::FIND_SAMPLES.div_ceil(k * k);
+        let (mut samples, mut only) = (find, None::<Vec<bool>>);
+        let mut reshaded = 0;
+        loop {
+            for (i, &time) in times.iter().enumerate() {
+                let engine = &*self.engine_at(time)?;
+                let out = if i == 0 { &mut *now } else { &mut then[i - 1] };
+                reshade::direct_at(
+                    scene,
+                    engine,
+                    t,
+                    time,
+                    pixels,
+                    w,
+                    cam,
+                    samples,
+                    opts.seed,
+                    only.as_deref(),
+                    out,
+                )?;
+            }
+            if only.is_some() || opts.reshade_samples <= find {
+                return Ok(reshaded);
+            }
+            let changed = reshade::changed(now, then, w, k as usize);
+            reshaded = changed.iter().filter(|&&c| c).count();
+            (samples, only) = (opts.reshade_samples, Some(changed));
+        }
     }
 
     /// Repairs the cracks of `buffer`, a frame of `camera` ([`fill::cracks`]),
@@ -866,234 +721,6 @@ impl<'a> Synthesizer<'a> {
         }
         Ok(&mut **engine)
     }
-}
-
-/// The most subpixels per side a frame pixel may be synthesized from.
-pub const MAX_SUPERSAMPLE: u32 = 4;
-
-/// A frame of `camera` (with `meta`) from its synthesis at `k` × `k`
-/// subpixels a pixel: subpixel `j` was reached by some sample (`seen`),
-/// holds `radiance(j)` and shows object `object(j)`, whose surface is
-/// `surface(j)` (distance, object, primitive, normal). A pixel's radiance is the mean of its seen
-/// subpixels; its surface that of the seen subpixel nearest its centre,
-/// with the distance where its centre ray meets that surface's triangle
-/// (at `poses`), as a render's would be; a pixel none reached is a hole. A
-/// pixel part of which shows a light takes the light's surface, so that
-/// tracing lights' rims ([`lights`]) finds it. Written into `spare`'s
-/// planes where given. Returns the frame, its holes, and which pixels'
-/// subpixels show more than one object (their values mix surfaces:
-/// [`lights::trace`] mends them).
-#[allow(clippy::too_many_arguments)]
-fn downsample(
-    scene: &Scene,
-    poses: &[Affine3A],
-    spare: Option<RangeImage>,
-    (camera, k, meta): (&Camera, u32, &RangeMeta),
-    seen: impl Fn(usize) -> bool + Sync,
-    radiance: impl Fn(usize) -> Vec3 + Sync,
-    object: impl Fn(usize) -> u32 + Sync,
-    surface: impl Fn(usize) -> (f32, u32, u32, Vec3) + Sync,
-) -> Result<(RangeImage, usize, Vec<bool>)> {
-    let mut image = blank(
-        spare,
-        RangeMeta {
-            camera: *camera,
-            ..meta.clone()
-        },
-    )?;
-    let (w, k) = (camera.width as usize, k as usize);
-    let fw = w * k;
-    let emissive = lights::emissive(scene);
-    let emits = |id: u32| emissive.get(id as usize).copied().unwrap_or(false);
-    // Subpixel offsets, nearest the pixel's centre first.
-    let mut order: Vec<(usize, usize)> = (0..k * k).map(|i| (i % k, i / k)).collect();
-    let centre = (k as f32 - 1.0) * 0.5;
-    order.sort_by(|a, b| {
-        let d = |p: &(usize, usize)| (p.0 as f32 - centre).powi(2) + (p.1 as f32 - centre).powi(2);
-        d(a).total_cmp(&d(b))
-    });
-    let mut mixed = Vec::new();
-    alloc::resize(&mut mixed, image.len(), false, || {
-        format!("which of {} pixels mix surfaces", image.len())
-    })?;
-    let holes = image
-        .radiance
-        .par_iter_mut()
-        .zip(mixed.par_iter_mut())
-        .zip(image.distance.par_iter_mut())
-        .zip(image.object_id.par_iter_mut())
-        .zip(image.primitive_id.par_iter_mut())
-        .zip(image.normal.par_iter_mut())
-        .enumerate()
-        .map(
-            |(i, (((((pixel, mixed), distance), shown_object), primitive), normal))| {
-                let (x, y) = (i % w, i / w);
-                let at = |(dx, dy): (usize, usize)| (y * k + dy) * fw + x * k + dx;
-                let (mut sum, mut n, mut shown, mut light) = (Vec3::ZERO, 0u32, None, None);
-                for &o in &order {
-                    let j = at(o);
-                    if !seen(j) {
-                        continue;
-                    }
-                    sum += radiance(j);
-                    n += 1;
-                    *mixed |= shown.is_some_and(|s| object(s) != object(j));
-                    shown.get_or_insert(j);
-                    if light.is_none() && emits(object(j)) {
-                        light = Some(j);
-                    }
-                }
-                let Some(j) = light.or(shown) else {
-                    // Written, as every pixel: the image may be recycled.
-                    *pixel = Vec3::ZERO;
-                    (*distance, *shown_object, *primitive, *normal) =
-                        (0.0, NO_HIT, NO_HIT, Vec3::ZERO);
-                    return 1;
-                };
-                *pixel = sum / n as f32;
-                (*distance, *shown_object, *primitive, *normal) = surface(j);
-                if let Some(d) =
-                    centre_distance(scene, poses, camera, x, y, *shown_object, *primitive)
-                {
-                    *distance = d;
-                }
-                0
-            },
-        )
-        .sum();
-    Ok((image, holes, mixed))
-}
-
-/// Distance along pixel `(x, y)`'s centre ray to the plane of `object`'s
-/// triangle `primitive` posed at `poses`; `None` for sky or where the ray
-/// runs along the plane or meets it behind the camera.
-fn centre_distance(
-    scene: &Scene,
-    poses: &[Affine3A],
-    camera: &Camera,
-    x: usize,
-    y: usize,
-    object: u32,
-    primitive: u32,
-) -> Option<f32> {
-    let mesh = &scene.objects.get(object as usize)?.mesh;
-    let &[i, j, l] = mesh.triangles.get(primitive as usize)?;
-    let pose = poses[object as usize];
-    let p = &mesh.positions;
-    let a = pose.transform_point3(p[i as usize]);
-    let n =
-        (pose.transform_point3(p[j as usize]) - a).cross(pose.transform_point3(p[l as usize]) - a);
-    let ray = camera.ray(x as f32 + 0.5, y as f32 + 0.5)?;
-    let along = ray.dir.dot(n);
-    let d = (a - ray.origin).dot(n) / along;
-    (along.abs() > 1e-12 * n.length() && d > 0.0 && d.is_finite()).then_some(d)
-}
-
-/// `pcomb -s (1−α) A -s α B`, where `α` is the time fraction of the views
-/// that reached the pixel; a pixel only one time reached takes that time.
-fn blend_linear(a: &Accum, b: &Accum) -> Accum {
-    match (a.is_empty(), b.is_empty()) {
-        (true, true) => *a,
-        (false, true) => *a,
-        (true, false) => *b,
-        (false, false) => {
-            // Mean fraction of the later views; the earlier ones carry 0.
-            let alpha = (b.alpha / b.w).clamp(0.0, 1.0);
-            let (ca, cb) = (a.radiance / a.w, b.radiance / b.w);
-            let nearer = if alpha <= 0.5 { a } else { b };
-            Accum {
-                w: 1.0,
-                radiance: ca * (1.0 - alpha) + cb * alpha,
-                ..*nearer
-            }
-        }
-    }
-}
-
-/// An image with `meta`, `spare`'s planes where given (stale: the caller
-/// writes every pixel); an error saying what it needs where memory is
-/// short.
-fn blank(spare: Option<RangeImage>, meta: RangeMeta) -> Result<RangeImage> {
-    match spare {
-        Some(image) => Ok(RangeImage { meta, ..image }),
-        None => RangeImage::try_empty(meta),
-    }
-}
-
-/// The frame's pixels from what they gathered, every one of them written
-/// (an image may come from [`Synthesizer::recycle`]).
-fn write_pixels(scene: &Scene, poses: &[Affine3A], pixels: &[Accum], image: &mut RangeImage) {
-    let cam = image.meta.camera.position;
-    let row = image.width.max(1) as usize;
-    image
-        .radiance
-        .par_chunks_mut(row)
-        .zip(image.distance.par_chunks_mut(row))
-        .zip(image.object_id.par_chunks_mut(row))
-        .zip(image.primitive_id.par_chunks_mut(row))
-        .zip(image.normal.par_chunks_mut(row))
-        .zip(pixels.par_chunks(row))
-        .for_each(
-            |(((((radiance, distance), object), primitive), normal), a)| {
-                // Neighbouring pixels mostly show one triangle: its normal is
-                // worked out once for the run.
-                let mut last: Option<((u32, u32), Option<Vec3>)> = None;
-                for (j, a) in a.iter().enumerate() {
-                    if a.is_empty() {
-                        radiance[j] = Vec3::ZERO;
-                        (distance[j], object[j], primitive[j], normal[j]) = shown(cam, a, None);
-                        continue;
-                    }
-                    radiance[j] = a.radiance / a.w;
-                    let key = (a.object, a.primitive);
-                    let n = match last {
-                        Some((k, n)) if k == key => n,
-                        _ => {
-                            let n = triangle_normal(scene, poses, a);
-                            last = Some((key, n));
-                            n
-                        }
-                    };
-                    (distance[j], object[j], primitive[j], normal[j]) = shown(cam, a, n);
-                }
-            },
-        );
-}
-
-/// The surface a pixel that gathered `a` shows: its distance, object and
-/// primitive ids and the normal of its triangle at `poses`, turned towards
-/// the camera at `cam`; distance 0, no ids and a zero normal for sky.
-fn surface(scene: &Scene, poses: &[Affine3A], cam: Vec3, a: &Accum) -> (f32, u32, u32, Vec3) {
-    shown(cam, a, triangle_normal(scene, poses, a))
-}
-
-/// The unit normal at `poses` of the triangle `a` shows, unturned; `None`
-/// for sky and for a primitive its mesh does not hold.
-fn triangle_normal(scene: &Scene, poses: &[Affine3A], a: &Accum) -> Option<Vec3> {
-    if a.is_empty() || a.z >= SKY_Z {
-        return None;
-    }
-    let mesh = &scene.objects[a.object as usize].mesh;
-    let &[i, j, l] = mesh.triangles.get(a.primitive as usize)?;
-    let p = &mesh.positions;
-    let e = (p[j as usize] - p[i as usize]).cross(p[l as usize] - p[i as usize]);
-    Some(
-        poses[a.object as usize]
-            .transform_vector3(e)
-            .normalize_or_zero(),
-    )
-}
-
-/// [`surface`] from the triangle's normal `n` ([`triangle_normal`]).
-fn shown(cam: Vec3, a: &Accum, n: Option<Vec3>) -> (f32, u32, u32, Vec3) {
-    if a.is_empty() || a.z >= SKY_Z {
-        return (0.0, NO_HIT, NO_HIT, Vec3::ZERO);
-    }
-    let Some(n) = n else {
-        return (a.z, a.object, a.primitive, Vec3::ZERO);
-    };
-    let n = if n.dot(cam - a.point) < 0.0 { -n } else { n };
-    (a.z, a.object, a.primitive, n)
 }
 
 /// Whether `position` lies in the view space (with a relative slack for

@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use rangewalk::accel::Backend;
+use rangewalk::bake::IndirectSource;
 use rangewalk::eval::experiments::common::setup::{CommonArgs, SequenceArgs};
 use rangewalk::eval::experiments::motion::{self, MotionArgs};
 use rangewalk::plan::ViewFitness;
@@ -24,6 +25,7 @@ fn args(out: PathBuf) -> MotionArgs {
             blend: Blend::Average,
             backend: Backend::default_available(),
             view_fitness: ViewFitness::Ids,
+            indirect: IndirectSource::Radiosity,
             no_flip: true,
         },
         camera: "main".into(),

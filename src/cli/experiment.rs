@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use rangewalk::accel::Backend;
+use rangewalk::bake::IndirectSource;
 use rangewalk::eval::experiments::common::sequence::SequenceQuality;
 use rangewalk::eval::experiments::common::setup::{CommonArgs, SequenceArgs};
 use rangewalk::eval::experiments::common::synthesize::mean_flip;
@@ -209,6 +210,10 @@ pub struct Common {
     /// What the planner's view-space cells must reach `--quality` in.
     #[arg(long, value_parser = choice::<ViewFitness>(), default_value_t = ViewFitness::Ids)]
     pub view_fitness: ViewFitness,
+    /// Where the bases' diffuse indirect light comes from (as `bake
+    /// --indirect`).
+    #[arg(long, value_parser = choice::<IndirectSource>(), default_value_t = IndirectSource::Radiosity)]
+    pub indirect: IndirectSource,
     /// Leave out the FLIP column (when the Python environment of `make deps`
     /// is not installed).
     #[arg(long)]
@@ -229,6 +234,7 @@ impl From<Common> for CommonArgs {
             blend: a.blend,
             backend: a.backend,
             view_fitness: a.view_fitness,
+            indirect: a.indirect,
             no_flip: a.no_flip,
         }
     }

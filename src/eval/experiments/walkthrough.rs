@@ -719,6 +719,7 @@ mod tests {
                     blend: Blend::Average,
                     backend: Backend::Bvh,
                     view_fitness: crate::plan::ViewFitness::Ids,
+                    indirect: crate::bake::IndirectSource::Radiosity,
                     no_flip: true,
                 },
                 path: "walk".into(),

@@ -53,6 +53,8 @@ pub struct CommonArgs {
     pub backend: Backend,
     /// What the planner's view-space cells must reach the quality in.
     pub view_fitness: ViewFitness,
+    /// Where the bases' diffuse indirect light comes from.
+    pub indirect: IndirectSource,
     /// Leave out the FLIP column (when the Python environment of `make deps`
     /// is not installed).
     pub no_flip: bool,
@@ -127,6 +129,12 @@ impl CommonArgs {
             ));
         }
         notes.extend(scene.warnings.iter().cloned());
+        if self.indirect != IndirectSource::Radiosity {
+            notes.push(format!(
+                "bases' diffuse indirect light: {} (the bake's default is radiosity)",
+                self.indirect
+            ));
+        }
         let base_size = match self.base_size {
             Some(0) => bail!("--base-size must be at least 1"),
             Some(n) => n,
@@ -158,9 +166,9 @@ impl CommonArgs {
         })
     }
 
-    /// The bake settings of quality `q`: full-sphere bases with indirect
-    /// light from radiosity records, as `rangewalk bake` makes by default,
-    /// but sampled flat at `--base-spp` (not to a noise target), so that
+    /// The bake settings of quality `q`: full-sphere bases with the
+    /// indirect light asked for, as `rangewalk bake` makes them, but
+    /// sampled flat at `--base-spp` (not to a noise target), so that
     /// the experiments' sample counts are the ones their reports state.
     pub fn bake_settings(&self, q: Quality, base_size: u32) -> bake::Settings {
         bake::Settings {
@@ -168,7 +176,7 @@ impl CommonArgs {
             size: base_size,
             spp: self.base_spp,
             projection: BaseProjection::Sphere,
-            indirect: IndirectSource::Radiosity,
+            indirect: self.indirect,
             seed: BAKE_SEED,
             backend: self.backend,
             max_depth: None,

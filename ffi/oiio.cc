@@ -224,7 +224,9 @@ void write_image(rust::Str path_str, rust::Str format, const Raster &image) {
     for (const Attribute &a : image.attributes)
         put_attribute(spec, a);
     if (std::string(format) == "openexr") {
-        spec.attribute("compression", "zip");
+        // The caller says how (`image::ExrCompression`); ZIP otherwise.
+        if (!spec.find_attribute("compression"))
+            spec.attribute("compression", "zip");
         // OpenImageIO stamps EXR files with the time of writing unless a
         // date is given; an empty one keeps the same pixels the same bytes,
         // which is what checksums of resumed and sharded bakes compare.
@@ -251,19 +253,6 @@ void write_image(rust::Str path_str, rust::Str format, const Raster &image) {
         ok = out.out->write_scanlines(spec.y + int(y0), spec.y + int(y1), 0, OIIO::TypeUnknown,
                                       pixels.data());
     }
-    finish(out, path, ok);
-}
-
-void write_rgb8(rust::Str path_str, uint32_t width, uint32_t height,
-                rust::Slice<const uint8_t> rgb) {
-    std::string path(path_str);
-    if (rgb.size() != size_t(width) * height * 3)
-        fail(path, std::to_string(rgb.size()) + " bytes do not hold " + std::to_string(width) +
-                       "x" + std::to_string(height) + " RGB pixels",
-             "");
-    OIIO::ImageSpec spec(int(width), int(height), 3, OIIO::TypeUInt8);
-    Output out = open_output(path, "png", spec);
-    bool ok = out.out->write_image(OIIO::TypeUInt8, rgb.data());
     finish(out, path, ok);
 }
 

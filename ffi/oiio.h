@@ -48,10 +48,6 @@ struct Words {
 // named OpenImageIO format ("openexr", "hdr", ...).
 void write_image(rust::Str path, rust::Str format, const Raster &image);
 
-// Writes 8-bit RGB pixels (row-major, top row first) to `path` as PNG.
-void write_rgb8(rust::Str path, uint32_t width, uint32_t height,
-                rust::Slice<const uint8_t> rgb);
-
 // Reads the first subimage of `path`, refused when it has more than
 // `max_pixels` pixels: 32-bit unsigned channels verbatim,
 // every other channel converted to float (integer formats normalized to

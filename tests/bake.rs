@@ -673,8 +673,8 @@ fn a_bad_window_in_a_manifest_or_an_exr_is_refused_naming_the_file_and_field() {
     has(&e, &[&m.images[0].file, "data window", "`windows[0]`"]);
     // A manifest of a later version is refused as before.
     let dir = copy("later");
-    edit_manifest(&dir, |m| m["version"] = 7.into());
-    has(&refused(&dir), &["manifest.json", "`version` is 7"]);
+    edit_manifest(&dir, |m| m["version"] = 8.into());
+    has(&refused(&dir), &["manifest.json", "`version` is 8"]);
 
     // An EXR whose data window does not lie in its display window, with
     // either reader.

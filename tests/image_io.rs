@@ -516,18 +516,37 @@ fn a_planes_file_round_trips_bit_for_bit_and_names_the_damaged_chunk() {
         assert!(e.contains("a.planes") && e.contains("another image"), "{e}");
     }
     // Three chunks a plane; one bit of the second chunk of `distance`
-    // flipped is found, and named.
+    // flipped is found, and named, while every other chunk still reads
+    // alone, as it was written.
     let (w, h) = (300, 500);
     assert_eq!((w * h as usize).div_ceil(CHUNK), 3);
     let image = sample_image_of(Projection::Sphere, w as u32, h);
     planes_file::write(&path, &image, "0123456789abcdef").unwrap();
     assert_eq!(planes_file::read(&path, "0123456789abcdef").unwrap(), image);
-    let mut bytes = std::fs::read(&path).unwrap();
     let n = w * h as usize;
-    // The pixels lie at the end: radiance, distance, ids, normals.
-    let distance = bytes.len() - 4 * (3 + 1 + 1 + 1 + 3) * n + 12 * n;
-    let at = distance + 4 * (CHUNK + 5);
-    bytes[at] ^= 0x10;
+    let words = |p: usize, c: usize| -> Vec<u8> {
+        let r = c * CHUNK..((c + 1) * CHUNK).min(n);
+        match p {
+            1 => image.distance[r]
+                .iter()
+                .flat_map(|d| d.to_le_bytes())
+                .collect(),
+            4 => image.normal[r]
+                .iter()
+                .flat_map(|v| v.to_array())
+                .flat_map(|x| x.to_le_bytes())
+                .collect(),
+            _ => unreachable!(),
+        }
+    };
+    let file = planes_file::PlanesFile::open(&path, "0123456789abcdef").unwrap();
+    let span = file.chunk_span(1, 1).unwrap();
+    // Compressed: the sample's smooth planes take less than their words.
+    let len = std::fs::metadata(&path).unwrap().len();
+    assert!(len < 4 * 9 * n as u64, "{len} bytes");
+    drop(file);
+    let mut bytes = std::fs::read(&path).unwrap();
+    bytes[(span.start + span.end) as usize / 2] ^= 0x10;
     std::fs::write(&path, &bytes).unwrap();
     let e = format!(
         "{:#}",
@@ -536,9 +555,16 @@ fn a_planes_file_round_trips_bit_for_bit_and_names_the_damaged_chunk() {
     assert!(
         e.contains("a.planes")
             && e.contains("chunk 1 of plane `distance`")
+            && e.contains(&format!("bytes {} to {}", span.start, span.end))
             && e.contains("damaged"),
         "{e}"
     );
+    let file = planes_file::PlanesFile::open(&path, "0123456789abcdef").unwrap();
+    assert!(file.read_chunk(1, 1).is_err());
+    for (p, c) in [(1, 0), (1, 2), (4, 1)] {
+        assert!(file.read_chunk(p, c).unwrap() == words(p, c), "{p} {c}");
+    }
+    drop(file);
     // Cut short, and not a planes file at all.
     std::fs::write(&path, &bytes[..bytes.len() - 4]).unwrap();
     let e = format!(
@@ -557,4 +583,107 @@ fn a_planes_file_round_trips_bit_for_bit_and_names_the_damaged_chunk() {
         planes_file::read(&dir.path().join("none.planes"), "0123456789abcdef").unwrap_err()
     );
     assert!(e.contains("none.planes"), "{e}");
+}
+
+/// A planes file as version 1 wrote it (bakes of manifest version 6): the
+/// words raw, no chunk lengths.
+fn version_1_planes(image: &RangeImage, sum: &str) -> Vec<u8> {
+    use rangewalk::checksum::{fnv1a64, hex};
+    use rangewalk::image::planes_file::CHUNK;
+    let n = image.len();
+    let v3 = |v: &[Vec3]| -> Vec<u8> {
+        v.iter()
+            .flat_map(|v| v.to_array())
+            .flat_map(|x| x.to_le_bytes())
+            .collect()
+    };
+    let planes: Vec<(&str, usize, Vec<u8>)> = vec![
+        ("radiance", 3, v3(&image.radiance)),
+        (
+            "distance",
+            1,
+            image
+                .distance
+                .iter()
+                .flat_map(|d| d.to_le_bytes())
+                .collect(),
+        ),
+        (
+            "object_id",
+            1,
+            image
+                .object_id
+                .iter()
+                .flat_map(|d| d.to_le_bytes())
+                .collect(),
+        ),
+        (
+            "primitive_id",
+            1,
+            image
+                .primitive_id
+                .iter()
+                .flat_map(|d| d.to_le_bytes())
+                .collect(),
+        ),
+        ("normal", 3, v3(&image.normal)),
+    ];
+    let records: Vec<_> = planes
+        .iter()
+        .map(|(name, words, bytes)| {
+            let chunks: Vec<String> = bytes
+                .chunks(4 * words * CHUNK)
+                .map(|c| hex(fnv1a64(c)))
+                .collect();
+            serde_json::json!({ "name": name, "words_per_pixel": words, "chunks": chunks })
+        })
+        .collect();
+    let c = &image.meta.camera;
+    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+    let header = serde_json::json!({
+        "version": 1,
+        "width": image.width,
+        "height": image.height,
+        "camera": {
+            "position": bits(c.position), "forward": bits(c.forward), "up": bits(c.up),
+            "right": bits(c.right), "projection": "sphere", "vfov_deg": null, "window": c.window,
+        },
+        "time": image.meta.time.to_bits(),
+        "scene": image.meta.scene,
+        "image_fnv1a64": sum,
+        "chunk_pixels": CHUNK,
+        "planes": records,
+    });
+    let json = serde_json::to_vec(&header).unwrap();
+    let mut out = b"RWPLANES".to_vec();
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(&json);
+    out.extend_from_slice(hex(fnv1a64(&json)).as_bytes());
+    assert_eq!(n, image.radiance.len());
+    for (_, _, bytes) in &planes {
+        out.extend_from_slice(bytes);
+    }
+    out
+}
+
+#[test]
+fn a_version_1_planes_file_still_reads_bit_for_bit_and_names_its_damage() {
+    use rangewalk::image::planes_file;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("old.planes");
+    let image = sample_image_of(Projection::Sphere, 300, 500);
+    let mut bytes = version_1_planes(&image, "0123456789abcdef");
+    std::fs::write(&path, &bytes).unwrap();
+    assert_eq!(planes_file::read(&path, "0123456789abcdef").unwrap(), image);
+    // The last byte: the last chunk of `normal`.
+    *bytes.last_mut().unwrap() ^= 1;
+    std::fs::write(&path, &bytes).unwrap();
+    let e = format!(
+        "{:#}",
+        planes_file::read(&path, "0123456789abcdef").unwrap_err()
+    );
+    assert!(
+        e.contains("chunk 2 of plane `normal`") && e.contains("damaged"),
+        "{e}"
+    );
 }

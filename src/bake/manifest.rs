@@ -25,12 +25,14 @@ use crate::render::noise::NoiseReport;
 
 /// Identifies a base-image bake manifest.
 pub const FORMAT: &str = "rangewalk-base-images";
-/// Bumped whenever the layout changes. Version 6 gives each image a
-/// planes file ([`planes_path`]), version 5 records each view's window
+/// Bumped whenever the layout changes. Version 7 compresses the planes
+/// files (planes file version 2; version 6's uncompressed ones, version 1,
+/// are still read), version 6 gives each image a planes file
+/// ([`planes_path`]), version 5 records each view's window
 /// (partial base images), version 4 the sampling settings and each
-/// image's noise, version 3 the planning settings; versions 2 to 5 are
+/// image's noise, version 3 the planning settings; versions 2 to 6 are
 /// read too (see [`Manifest::read`]); others are refused.
-pub const VERSION: u32 = 6;
+pub const VERSION: u32 = 7;
 /// The first version whose images have planes files.
 pub const PLANES_SINCE: u32 = 6;
 pub const MANIFEST: &str = "manifest.json";
@@ -106,7 +108,7 @@ impl Manifest {
             m.windows = vec![BaseWindow::whole(m.settings.size); m.plan.views.len()];
         }
         match m.version {
-            VERSION | 3..=5 => {}
+            VERSION | 3..=6 => {}
             // Version 2 did not record the planning settings, but its plans
             // did, as made: the id-image side, whether one master list, and
             // the view fitness (ids, the only one there was before plans

@@ -9,14 +9,15 @@ use exr::prelude::*;
 
 use super::planes::{Attr, DataWindow, Plane, Planes};
 use super::Texture;
-use super::{write_atomically, RangeImage, MAX_PIXELS};
+use super::{write_atomically, ExrCompression, RangeImage, MAX_PIXELS};
 
-/// Writes `image` as a single-part, ZIP-compressed EXR, atomically.
+/// Writes `image` as a single-part, RLE-compressed EXR, atomically (as
+/// [`super::write_exr`]).
 pub fn write(path: impl AsRef<Path>, image: &RangeImage) -> Result<()> {
     let path = path.as_ref();
     let planes =
         Planes::from_range(image).with_context(|| format!("writing {}", path.display()))?;
-    write_atomically(path, |tmp| write_planes(tmp, planes))
+    write_atomically(path, |tmp| write_planes(tmp, planes, ExrCompression::Rle))
 }
 
 /// Reads a range image written by [`write`] or by the OpenImageIO back end.
@@ -43,7 +44,7 @@ fn text(s: &str) -> Text {
 
 /// Takes the planes by value: their samples move into the encoder, so no
 /// second copy of the image is made.
-pub(super) fn write_planes(path: &Path, planes: Planes) -> Result<()> {
+pub(super) fn write_planes(path: &Path, planes: Planes, compression: ExrCompression) -> Result<()> {
     let channels = planes
         .channels
         .into_iter()
@@ -67,7 +68,13 @@ pub(super) fn write_planes(path: &Path, planes: Planes) -> Result<()> {
     let mut layer = Layer::new(
         (planes.width as usize, planes.height as usize),
         attributes,
-        Encoding::SMALL_LOSSLESS,
+        match compression {
+            ExrCompression::Zip => Encoding::SMALL_LOSSLESS,
+            ExrCompression::Rle => Encoding {
+                compression: Compression::RLE,
+                ..Encoding::SMALL_LOSSLESS
+            },
+        },
         AnyChannels::sort(channels),
     );
     // The display window at the origin, the data window inside it.

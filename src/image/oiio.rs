@@ -67,7 +67,6 @@ mod ffi {
         include!("rangewalk/ffi/oiio.h");
 
         fn write_image(path: &str, format: &str, image: &Raster) -> Result<()>;
-        fn write_rgb8(path: &str, width: u32, height: u32, rgb: &[u8]) -> Result<()>;
         fn read_image(path: &str, max_pixels: u64) -> Result<Decoded>;
 
         /// One vector of words per channel of a file read.
@@ -87,7 +86,7 @@ fn path_str(path: &Path) -> Result<&str> {
 /// The file formats written through OpenImageIO besides PNG.
 #[derive(Clone, Copy, Debug)]
 pub enum Format {
-    Exr,
+    Exr(super::ExrCompression),
     Hdr,
 }
 
@@ -101,7 +100,7 @@ pub fn write(path: &Path, format: Format, planes: Planes) -> Result<()> {
         full_width: planes.width.into(),
         full_height: planes.height.into(),
     });
-    let raster = ffi::Raster {
+    let mut raster = ffi::Raster {
         width: planes.width,
         height: planes.height,
         x: d.x,
@@ -141,15 +140,17 @@ pub fn write(path: &Path, format: Format, planes: Planes) -> Result<()> {
             .collect(),
     };
     let format = match format {
-        Format::Exr => "openexr",
+        Format::Exr(compression) => {
+            raster.attributes.push(ffi::Attribute {
+                name: "compression".into(),
+                floats: Vec::new(),
+                text: compression.name().into(),
+            });
+            "openexr"
+        }
         Format::Hdr => "hdr",
     };
     Ok(ffi::write_image(path_str(path)?, format, &raster)?)
-}
-
-/// Writes 8-bit RGB pixels, row-major and top row first, as PNG.
-pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
-    Ok(ffi::write_rgb8(path_str(path)?, width, height, rgb)?)
 }
 
 /// Reads the first subimage of any file OpenImageIO understands.

@@ -1,28 +1,37 @@
-//! A range image's planes stored raw beside its EXR, so that synthesis
-//! opens a base without decoding a compressed file: decoding and hashing
-//! a base's EXR (eighteen ZIP-compressed channels, the light layers
-//! among them) took most of a second for a 2,544² sphere's window, while
-//! reading the planes synthesis needs as they lie on disk takes
-//! milliseconds.
+//! A range image's planes stored beside its EXR, so that synthesis opens a
+//! base without decoding the EXR: decoding and hashing a base's EXR
+//! (eighteen ZIP-compressed channels, the light layers among them) took
+//! most of a second for a 2,544² sphere's window, while reading the planes
+//! synthesis needs from this file takes tens of milliseconds.
 //!
 //! The file holds the range image's planes (radiance, distance, object and
 //! primitive ids, normals; not the light layers, which re-shading does not
-//! read) as little-endian 32-bit words, each plane cut into chunks of
-//! [`CHUNK`] pixels with an FNV-1a 64 checksum apiece, so that every chunk
-//! is checked as it is read, on all cores at once. The header holds the
-//! camera (floats as bit patterns, so it reads back bit for bit), the
-//! chunks' checksums and the content checksum of the EXR the planes were
-//! made with; it is followed by its own checksum. A reader that holds the
-//! EXR's checksum (the bake's manifest) therefore trusts every byte it
+//! read), each plane cut into chunks of [`CHUNK`] pixels. A chunk is its
+//! pixels' little-endian 32-bit words with their bytes regrouped (every
+//! word's first byte, then every second byte, ...: the sign and exponent
+//! bytes of neighbouring floats are alike, their low mantissa bytes are
+//! noise), compressed as one zstd frame. Each chunk stands alone: it is
+//! found from the header's table of chunk lengths, checked against its
+//! FNV-1a 64 before it is decoded and decoded without any other, and the
+//! chunks are read on all cores at once. The header holds the camera
+//! (floats as bit patterns, so it reads back bit for bit), the chunks'
+//! lengths and checksums and the content checksum of the EXR the planes
+//! were made with; it is followed by its own checksum. A reader that holds
+//! the EXR's checksum (the bake's manifest) therefore trusts every byte it
 //! reads: header, then chunks.
 //!
 //! ```text
 //! "RWPLANES"  u32 LE header length L  header (JSON, L bytes)  FNV-1a 64 of the header (16 hex digits)
-//! plane 0 (radiance, 3 words a pixel), plane 1 (distance), 2 (object_id), 3 (primitive_id), 4 (normal, 3)
+//! the chunks of plane 0 (radiance, 3 words a pixel), then of plane 1 (distance), 2 (object_id),
+//! 3 (primitive_id), 4 (normal, 3), each as long as the header says
 //! ```
+//!
+//! Version 1 (bakes of manifest version 6) stored the words raw, unregrouped
+//! and uncompressed, with no lengths in the header; it is still read.
 
 use std::fs::File;
 use std::io::{BufWriter, Read, Write};
+use std::ops::Range;
 use std::os::unix::fs::FileExt;
 use std::path::Path;
 
@@ -37,12 +46,17 @@ use crate::checksum::{fnv1a64, hex, Fnv};
 
 const MAGIC: &[u8; 8] = b"RWPLANES";
 /// The layout's version, in the header.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
+/// The zstd level chunks are written at: on base images' noisy radiance
+/// the higher levels save a few percent of bytes and cost several times
+/// the time (see the bake format's documentation for the figures).
+const LEVEL: i32 = 1;
 /// Pixels per chunk: small enough that a window's chunks keep both cores
 /// busy, large enough that the header's table of checksums stays short.
 pub const CHUNK: usize = 1 << 16;
-/// The largest header accepted: a header names its chunks' checksums,
-/// some 20 bytes each, so even an 8,192² image needs well under this.
+/// The largest header accepted: a header names its chunks' lengths and
+/// checksums, some 30 bytes each, so even an 8,192² image needs well
+/// under this.
 const MAX_HEADER: u32 = 16 << 20;
 
 /// The planes in file order, with their 32-bit words per pixel.
@@ -87,8 +101,13 @@ struct CameraBits {
 struct PlaneRecord {
     name: String,
     words_per_pixel: usize,
-    /// FNV-1a 64 of each chunk's bytes, 16 hex digits.
+    /// FNV-1a 64 of each chunk's bytes as they lie in the file, 16 hex
+    /// digits.
     chunks: Vec<String>,
+    /// Each chunk's length in the file (bytes); absent in version 1, whose
+    /// chunks are the raw words.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    bytes: Vec<u64>,
 }
 
 fn bits(v: Vec3) -> [u32; 3] {
@@ -142,7 +161,7 @@ impl CameraBits {
 }
 
 /// Plane `p`'s words of pixels `range`, as little-endian bytes.
-fn plane_bytes(image: &RangeImage, p: usize, range: std::ops::Range<usize>) -> Vec<u8> {
+fn plane_bytes(image: &RangeImage, p: usize, range: Range<usize>) -> Vec<u8> {
     let mut out = Vec::with_capacity(range.len() * PLANES[p].1 * 4);
     let mut put = |w: u32| out.extend_from_slice(&w.to_le_bytes());
     match p {
@@ -163,8 +182,33 @@ fn plane_bytes(image: &RangeImage, p: usize, range: std::ops::Range<usize>) -> V
     out
 }
 
-fn chunks(n: usize) -> impl Iterator<Item = std::ops::Range<usize>> + Clone {
+fn chunks(n: usize) -> impl Iterator<Item = Range<usize>> + Clone {
     (0..n.div_ceil(CHUNK)).map(move |c| c * CHUNK..((c + 1) * CHUNK).min(n))
+}
+
+/// The bytes of 32-bit words regrouped: every word's byte 0, then every
+/// byte 1, 2 and 3.
+fn regroup(words: &[u8]) -> Vec<u8> {
+    let n = words.len() / 4;
+    let mut out = vec![0u8; words.len()];
+    for (i, w) in words.chunks_exact(4).enumerate() {
+        for (k, &b) in w.iter().enumerate() {
+            out[k * n + i] = b;
+        }
+    }
+    out
+}
+
+/// The inverse of [`regroup`].
+fn ungroup(grouped: &[u8]) -> Vec<u8> {
+    let n = grouped.len() / 4;
+    let mut out = vec![0u8; grouped.len()];
+    for (i, w) in out.chunks_exact_mut(4).enumerate() {
+        for (k, b) in w.iter_mut().enumerate() {
+            *b = grouped[k * n + i];
+        }
+    }
+    out
 }
 
 /// Writes `image`'s planes to `path` (atomically), naming `image_sum`,
@@ -185,22 +229,28 @@ pub fn write(path: &Path, image: &RangeImage, image_sum: &str) -> Result<()> {
         image.width,
         image.height
     );
-    // The checksums first, chunk by chunk on every core; the bytes are
-    // made again as they are written, so no second copy of the image is
-    // ever held.
+    // Every chunk compressed on every core; the header, which comes first,
+    // needs their lengths, so the compressed chunks are held until written
+    // (a few bytes a pixel: a fraction of the image's own 36).
+    let all: Vec<(usize, Range<usize>)> = (0..PLANES.len())
+        .flat_map(|p| chunks(n).map(move |r| (p, r)))
+        .collect();
+    let stored: Vec<Vec<u8>> = all
+        .into_par_iter()
+        .map(|(p, r)| {
+            zstd::bulk::compress(&regroup(&plane_bytes(image, p, r)), LEVEL)
+                .with_context(|| format!("writing {}: compressing a chunk", path.display()))
+        })
+        .collect::<Result<_>>()?;
+    let per_plane = n.div_ceil(CHUNK);
     let planes = PLANES
         .iter()
-        .enumerate()
-        .map(|(p, &(name, words_per_pixel))| {
-            let ranges: Vec<_> = chunks(n).collect();
-            PlaneRecord {
-                name: name.into(),
-                words_per_pixel,
-                chunks: ranges
-                    .into_par_iter()
-                    .map(|r| hex(fnv1a64(&plane_bytes(image, p, r))))
-                    .collect(),
-            }
+        .zip(stored.chunks(per_plane))
+        .map(|(&(name, words_per_pixel), chunks)| PlaneRecord {
+            name: name.into(),
+            words_per_pixel,
+            chunks: chunks.iter().map(|c| hex(fnv1a64(c))).collect(),
+            bytes: chunks.iter().map(|c| c.len() as u64).collect(),
         })
         .collect();
     let header = Header {
@@ -234,10 +284,8 @@ pub fn write(path: &Path, image: &RangeImage, image_sum: &str) -> Result<()> {
         out.write_all(&json).map_err(fail)?;
         out.write_all(hex(fnv1a64(&json)).as_bytes())
             .map_err(fail)?;
-        for p in 0..PLANES.len() {
-            for r in chunks(n) {
-                out.write_all(&plane_bytes(image, p, r)).map_err(fail)?;
-            }
+        for chunk in &stored {
+            out.write_all(chunk).map_err(fail)?;
         }
         out.into_inner()
             .map_err(|e| fail(e.into_error()))?
@@ -246,156 +294,238 @@ pub fn write(path: &Path, image: &RangeImage, image_sum: &str) -> Result<()> {
     })
 }
 
+/// An open planes file whose header is read and checked: any chunk of any
+/// plane can be read from it alone.
+pub struct PlanesFile {
+    file: File,
+    path: std::path::PathBuf,
+    header: Header,
+    /// Where each plane's chunks start and end in the file.
+    spans: Vec<Vec<Range<u64>>>,
+    pixels: usize,
+}
+
+impl PlanesFile {
+    /// Opens the planes file at `path`, checking its header against its
+    /// checksum and against `image_sum` (the checksum of the EXR it must
+    /// have been written with), and its length against the header.
+    pub fn open(path: &Path, image_sum: &str) -> Result<PlanesFile> {
+        let name = path.display();
+        let mut file = File::open(path).with_context(|| format!("{name}: cannot open"))?;
+        let len = file
+            .metadata()
+            .with_context(|| format!("{name}: cannot read"))?
+            .len();
+        let mut start = [0u8; 12];
+        file.read_exact(&mut start)
+            .map_err(|_| anyhow!("{name}: cut short before its header"))?;
+        ensure!(
+            &start[..8] == MAGIC,
+            "{name}: not a rangewalk planes file (it does not start with `RWPLANES`)"
+        );
+        let header_len = u32::from_le_bytes(start[8..12].try_into().expect("4 bytes"));
+        ensure!(
+            header_len <= MAX_HEADER && 12 + u64::from(header_len) + 16 <= len,
+            "{name}: header of {header_len} bytes in a file of {len}: the file is damaged"
+        );
+        let mut json = vec![0u8; header_len as usize];
+        let mut sum = [0u8; 16];
+        file.read_exact(&mut json)
+            .and_then(|_| file.read_exact(&mut sum))
+            .with_context(|| format!("{name}: cannot read its header"))?;
+        ensure!(
+            hex(fnv1a64(&json)).as_bytes() == sum,
+            "{name}: its header is damaged (its checksum differs from the one written after it)"
+        );
+        let header: Header = serde_json::from_slice(&json)
+            .with_context(|| format!("{name}: its header is not a planes file's"))?;
+        ensure!(
+            header.version == VERSION || header.version == 1,
+            "{name}: planes file version {}, this rangewalk reads versions 1 and {VERSION}",
+            header.version
+        );
+        ensure!(
+            header.image_fnv1a64 == image_sum,
+            "{name}: written with an image of checksum {}, not {image_sum}: it belongs to another image",
+            header.image_fnv1a64
+        );
+        let (w, h) = (header.width, header.height);
+        let n = w as usize * h as usize;
+        ensure!(
+            n > 0 && n as u64 <= MAX_PIXELS,
+            "{name}: {w}x{h} pixels, outside 1 to {MAX_PIXELS}"
+        );
+        ensure!(
+            header.chunk_pixels == CHUNK,
+            "{name}: chunks of {} pixels, expected {CHUNK}",
+            header.chunk_pixels
+        );
+        let count = n.div_ceil(CHUNK);
+        let raw = header.version == 1;
+        for (p, &(plane, words)) in PLANES.iter().enumerate() {
+            let r = header.planes.get(p);
+            ensure!(
+                r.is_some_and(|r| r.name == plane
+                    && r.words_per_pixel == words
+                    && r.chunks.len() == count
+                    && r.bytes.len() == if raw { 0 } else { count }),
+                "{name}: plane {p} is not `{plane}` of {words} word(s) a pixel in {count} chunk(s)"
+            );
+        }
+        // Each chunk's place: version 1's chunks are the raw words.
+        let mut at = 12 + u64::from(header_len) + 16;
+        let spans: Vec<Vec<Range<u64>>> = PLANES
+            .iter()
+            .enumerate()
+            .map(|(p, &(_, words))| {
+                chunks(n)
+                    .enumerate()
+                    .map(|(c, r)| {
+                        let size = if raw {
+                            (4 * words * r.len()) as u64
+                        } else {
+                            header.planes[p].bytes[c]
+                        };
+                        let span = at..at.saturating_add(size);
+                        at = span.end;
+                        span
+                    })
+                    .collect()
+            })
+            .collect();
+        ensure!(
+            len == at,
+            "{name}: {len} bytes, expected {at} for {w}x{h} pixels: the file is cut short or damaged"
+        );
+        Ok(PlanesFile {
+            file,
+            path: path.to_path_buf(),
+            header,
+            spans,
+            pixels: n,
+        })
+    }
+
+    /// The bytes of the file that chunk `c` of plane `p` (in file order:
+    /// radiance, distance, object_id, primitive_id, normal) occupies.
+    pub fn chunk_span(&self, p: usize, c: usize) -> Option<Range<u64>> {
+        self.spans.get(p)?.get(c).cloned()
+    }
+
+    /// Chunk `c` of plane `p`: its pixels' words as little-endian bytes,
+    /// read and checked alone.
+    pub fn read_chunk(&self, p: usize, c: usize) -> Result<Vec<u8>> {
+        let (plane, words) = PLANES[p];
+        let name = self.path.display();
+        let span = self
+            .chunk_span(p, c)
+            .with_context(|| format!("{name}: no chunk {c} of plane {p}"))?;
+        let mut stored = vec![0u8; (span.end - span.start) as usize];
+        self.file
+            .read_exact_at(&mut stored, span.start)
+            .with_context(|| format!("{name}: cannot read chunk {c} of `{plane}`"))?;
+        let mut h = Fnv::default();
+        h.write(&stored);
+        ensure!(
+            h.hex() == self.header.planes[p].chunks[c],
+            "{name}: chunk {c} of plane `{plane}` (bytes {} to {}) is damaged: its checksum differs from the header's",
+            span.start,
+            span.end
+        );
+        if self.header.version == 1 {
+            return Ok(stored);
+        }
+        let pixels = CHUNK.min(self.pixels - c * CHUNK);
+        let want = 4 * words * pixels;
+        // The checksum matched, so the chunk is as written: a failure here
+        // is a writer's fault, named all the same.
+        let grouped = zstd::bulk::decompress(&stored, want)
+            .ok()
+            .filter(|g| g.len() == want)
+            .with_context(|| {
+                format!("{name}: chunk {c} of plane `{plane}` does not decode to {pixels} pixels")
+            })?;
+        Ok(ungroup(&grouped))
+    }
+
+    /// The whole range image, every chunk checked as it is read.
+    pub fn read(self) -> Result<RangeImage> {
+        let (w, h) = (self.header.width, self.header.height);
+        let camera = self
+            .header
+            .camera
+            .camera(w, h)
+            .with_context(|| format!("{}: header", self.path.display()))?;
+        let vec3s = |b: &[u8]| {
+            let w = |i: usize| f32::from_le_bytes(b[i..i + 4].try_into().expect("4 bytes"));
+            Vec3::new(w(0), w(4), w(8))
+        };
+        let word = |b: &[u8]| u32::from_le_bytes(b.try_into().expect("4 bytes"));
+        let radiance = self.read_plane(0, vec3s)?;
+        let distance = self.read_plane(1, |b| f32::from_bits(word(b)))?;
+        let object_id = self.read_plane(2, word)?;
+        let primitive_id = self.read_plane(3, word)?;
+        let normal = self.read_plane(4, vec3s)?;
+        Ok(RangeImage {
+            width: w,
+            height: h,
+            radiance,
+            distance,
+            object_id,
+            primitive_id,
+            normal,
+            meta: RangeMeta {
+                camera,
+                time: f32::from_bits(self.header.time),
+                scene: self.header.scene,
+            },
+        })
+    }
+
+    /// Plane `p`: its chunks read and checked on every core, each pixel's
+    /// words decoded by `decode`.
+    fn read_plane<T: Send + Copy + Default>(
+        &self,
+        p: usize,
+        decode: impl Fn(&[u8]) -> T + Sync,
+    ) -> Result<Vec<T>> {
+        let (plane, words) = PLANES[p];
+        let size = 4 * words;
+        let mut out = Vec::new();
+        crate::alloc::reserve(&mut out, self.pixels, || {
+            format!("the `{plane}` plane of {}", self.path.display())
+        })?;
+        out.resize(self.pixels, T::default());
+        out.par_chunks_mut(CHUNK)
+            .enumerate()
+            .try_for_each(|(c, dst)| {
+                let bytes = self.read_chunk(p, c)?;
+                for (d, b) in dst.iter_mut().zip(bytes.chunks_exact(size)) {
+                    *d = decode(b);
+                }
+                Ok::<_, anyhow::Error>(())
+            })?;
+        Ok(out)
+    }
+}
+
 /// Reads the range image of the planes file at `path`, checking its header
 /// against `image_sum` (the checksum of the EXR it must have been written
 /// with) and every chunk against the header as it is read. Errors name the
 /// file, and the plane and chunk at fault.
 pub fn read(path: &Path, image_sum: &str) -> Result<RangeImage> {
-    let name = path.display();
-    let mut file = File::open(path).with_context(|| format!("{name}: cannot open"))?;
-    let len = file
-        .metadata()
-        .with_context(|| format!("{name}: cannot read"))?
-        .len();
-    let mut start = [0u8; 12];
-    file.read_exact(&mut start)
-        .map_err(|_| anyhow!("{name}: cut short before its header"))?;
-    ensure!(
-        &start[..8] == MAGIC,
-        "{name}: not a rangewalk planes file (it does not start with `RWPLANES`)"
-    );
-    let header_len = u32::from_le_bytes(start[8..12].try_into().expect("4 bytes"));
-    ensure!(
-        header_len <= MAX_HEADER && 12 + u64::from(header_len) + 16 <= len,
-        "{name}: header of {header_len} bytes in a file of {len}: the file is damaged"
-    );
-    let mut json = vec![0u8; header_len as usize];
-    let mut sum = [0u8; 16];
-    file.read_exact(&mut json)
-        .and_then(|_| file.read_exact(&mut sum))
-        .with_context(|| format!("{name}: cannot read its header"))?;
-    ensure!(
-        hex(fnv1a64(&json)).as_bytes() == sum,
-        "{name}: its header is damaged (its checksum differs from the one written after it)"
-    );
-    let header: Header = serde_json::from_slice(&json)
-        .with_context(|| format!("{name}: its header is not a planes file's"))?;
-    ensure!(
-        header.version == VERSION,
-        "{name}: planes file version {}, this rangewalk reads version {VERSION}",
-        header.version
-    );
-    ensure!(
-        header.image_fnv1a64 == image_sum,
-        "{name}: written with an image of checksum {}, not {image_sum}: it belongs to another image",
-        header.image_fnv1a64
-    );
-    let (w, h) = (header.width, header.height);
-    let n = w as usize * h as usize;
-    ensure!(
-        n > 0 && n as u64 <= MAX_PIXELS,
-        "{name}: {w}x{h} pixels, outside 1 to {MAX_PIXELS}"
-    );
-    ensure!(
-        header.chunk_pixels == CHUNK,
-        "{name}: chunks of {} pixels, expected {CHUNK}",
-        header.chunk_pixels
-    );
-    let count = n.div_ceil(CHUNK);
-    for (p, &(plane, words)) in PLANES.iter().enumerate() {
-        let r = header.planes.get(p);
-        ensure!(
-            r.is_some_and(|r| r.name == plane
-                && r.words_per_pixel == words
-                && r.chunks.len() == count),
-            "{name}: plane {p} is not `{plane}` of {words} word(s) a pixel in {count} chunk(s)"
-        );
-    }
-    let data = 12 + u64::from(header_len) + 16;
-    let words: usize = PLANES.iter().map(|p| p.1).sum();
-    let want = data + 4 * (words * n) as u64;
-    ensure!(
-        len == want,
-        "{name}: {len} bytes, expected {want} for {w}x{h} pixels: the file is cut short or damaged"
-    );
-    let camera = header
-        .camera
-        .camera(w, h)
-        .with_context(|| format!("{name}: header"))?;
-
-    let mut offset = data;
-    let mut next = |p: usize| {
-        let at = offset;
-        offset += 4 * (PLANES[p].1 * n) as u64;
-        at
-    };
-    let f = &file;
-    let sums = |p: usize| header.planes[p].chunks.as_slice();
-    let vec3s = |b: &[u8]| {
-        let w = |i: usize| f32::from_le_bytes(b[i..i + 4].try_into().expect("4 bytes"));
-        Vec3::new(w(0), w(4), w(8))
-    };
-    let word = |b: &[u8]| u32::from_le_bytes(b.try_into().expect("4 bytes"));
-    let radiance = read_plane(f, path, 0, next(0), sums(0), n, vec3s)?;
-    let distance = read_plane(f, path, 1, next(1), sums(1), n, |b| f32::from_bits(word(b)))?;
-    let object_id = read_plane(f, path, 2, next(2), sums(2), n, word)?;
-    let primitive_id = read_plane(f, path, 3, next(3), sums(3), n, word)?;
-    let normal = read_plane(f, path, 4, next(4), sums(4), n, vec3s)?;
-    Ok(RangeImage {
-        width: w,
-        height: h,
-        radiance,
-        distance,
-        object_id,
-        primitive_id,
-        normal,
-        meta: RangeMeta {
-            camera,
-            time: f32::from_bits(header.time),
-            scene: header.scene,
-        },
-    })
+    PlanesFile::open(path, image_sum)?.read()
 }
 
-/// Plane `p` of `n` pixels at byte `offset`: its chunks read and checked
-/// on every core, each pixel's words decoded by `decode`.
-fn read_plane<T: Send + Copy + Default>(
-    file: &File,
-    path: &Path,
-    p: usize,
-    offset: u64,
-    sums: &[String],
-    n: usize,
-    decode: impl Fn(&[u8]) -> T + Sync,
-) -> Result<Vec<T>> {
-    let (plane, words) = PLANES[p];
-    let size = 4 * words;
-    let mut out = Vec::new();
-    crate::alloc::reserve(&mut out, n, || {
-        format!("the `{plane}` plane of {}", path.display())
-    })?;
-    out.resize(n, T::default());
-    out.par_chunks_mut(CHUNK)
-        .zip(sums)
-        .enumerate()
-        .try_for_each(|(c, (dst, sum))| {
-            let at = offset + (c * CHUNK * size) as u64;
-            let mut bytes = vec![0u8; dst.len() * size];
-            file.read_exact_at(&mut bytes, at).with_context(|| {
-                format!("{}: cannot read chunk {c} of `{plane}`", path.display())
-            })?;
-            let mut h = Fnv::default();
-            h.write(&bytes);
-            ensure!(
-                h.hex() == *sum,
-                "{}: chunk {c} of plane `{plane}` (bytes {at} to {}) is damaged: its checksum differs from the header's",
-                path.display(),
-                at + bytes.len() as u64
-            );
-            for (d, b) in dst.iter_mut().zip(bytes.chunks_exact(size)) {
-                *d = decode(b);
-            }
-            Ok(())
-        })?;
-    Ok(out)
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regrouping_is_undone() {
+        let words: Vec<u8> = (0..4 * 37).map(|i| (i * 7 % 251) as u8).collect();
+        let g = regroup(&words);
+        assert_eq!(g[..4], [words[0], words[4], words[8], words[12]]);
+        assert_eq!(ungroup(&g), words);
+    }
 }

@@ -36,6 +36,9 @@ pub fn write(path: impl AsRef<Path>, width: u32, height: u32, rgb: &[u8]) -> Res
         encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);
         encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        // fdeflate: a walk writes a preview a frame, and the default
+        // level took as long as making a frame (a few percent larger files).
+        encoder.set_compression(png::Compression::Fast);
         let mut writer = encoder.write_header().map_err(err)?;
         writer.write_image_data(rgb).map_err(err)?;
         writer.finish().map_err(err)

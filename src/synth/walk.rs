@@ -182,14 +182,15 @@ pub fn walk(
             .with_context(|| format!("frame {i} (t = {t})"))?;
         let name = format!("frame-{i:04}");
         image::write_exr(staging.join(format!("{name}.exr")), &frame)?;
-        image::write_png_preview(
+        // One tone map for the preview and the animation.
+        let rgb = image::tonemap_srgb8(&frame.radiance, settings.exposure);
+        image::png_io::write(
             staging.join(format!("{name}.png")),
             frame.width,
             frame.height,
-            &frame.radiance,
-            settings.exposure,
+            &rgb,
         )?;
-        animation.push(&image::tonemap_srgb8(&frame.radiance, settings.exposure))?;
+        animation.push(&rgb)?;
         if let Some(c) = checker.as_mut().filter(|c| c.wants(i, times.len())) {
             bar.set_message(format!("checking frame {i}"));
             checks.push(c.check(synth, i, t, &camera, &frame, &staging)?);
@@ -260,6 +261,8 @@ impl Animation {
             let mut enc = png::Encoder::new(BufWriter::new(file), size.0, size.1);
             enc.set_color(png::ColorType::Rgb);
             enc.set_depth(png::BitDepth::Eight);
+            // As the frames' previews (`image::png_io`).
+            enc.set_compression(png::Compression::Fast);
             enc.set_animated(u32::try_from(frames.max(1))?, 0)?;
             // Delay as a fraction: 1000 / (fps * 1000) s.
             enc.set_frame_delay(1000, (fps * 1000.0).round().clamp(1.0, 65535.0) as u16)?;

@@ -1051,3 +1051,75 @@ fn stiff_cornell_box_converges() {
         mean(&a)
     );
 }
+
+/// `nu × nv` quads over the parallelogram from `o` along `u` and `v`, as
+/// two triangles each (OBJ faces numbered from `first`).
+fn grid_obj(o: Vec3, u: Vec3, v: Vec3, nu: usize, nv: usize, first: &mut usize) -> String {
+    let mut obj = String::new();
+    for i in 0..nu {
+        for j in 0..nv {
+            let at = |a: usize, b: usize| o + u * (a as f32 / nu as f32) + v * (b as f32 / nv as f32);
+            for p in [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)] {
+                obj.push_str(&format!("v {} {} {}\n", p.x, p.y, p.z));
+            }
+            let n = *first;
+            obj.push_str(&format!("f {} {} {}\nf {} {} {}\n", n + 1, n + 2, n + 3, n + 1, n + 3, n + 4));
+            *first += 4;
+        }
+    }
+    obj
+}
+
+/// A furnace the shape of a room: 6 × 3 × 4 m, tessellated at 0.5 m, so
+/// that the solver clusters its patches and links clusters far apart (the
+/// unit cube's twelve triangles are all close to one another and every link
+/// ends on a surface). Every face reflects `rho` and emits on both sides.
+fn furnace_room(dir: &Path, rho: f32) -> Scene {
+    let (x, y, z) = (6.0, 3.0, 4.0);
+    let (ex, ey, ez) = (Vec3::X * x, Vec3::Y * y, Vec3::Z * z);
+    let mut n = 0;
+    let obj = [
+        grid_obj(Vec3::ZERO, ez, ex, 8, 12, &mut n),
+        grid_obj(ey, ex, ez, 12, 8, &mut n),
+        grid_obj(Vec3::ZERO, ex, ey, 12, 6, &mut n),
+        grid_obj(ez, ey, ex, 6, 12, &mut n),
+        grid_obj(Vec3::ZERO, ey, ez, 6, 8, &mut n),
+        grid_obj(ex, ez, ey, 8, 6, &mut n),
+    ]
+    .concat();
+    std::fs::write(dir.join("room.obj"), obj).unwrap();
+    let toml = format!(
+        "[[materials]]\nname = \"wall\"\ntype = \"diffuse\"\nreflectance = [{rho}, {rho}, {rho}]\n\
+         emission = [1, 1, 1]\ntwo_sided_emission = true\n\n\
+         [[objects]]\nname = \"room\"\nmesh = \"room.obj\"\nmaterial = \"wall\"\n"
+    );
+    std::fs::write(dir.join("scene.toml"), toml).unwrap();
+    load(&dir.join("scene.toml"))
+}
+
+#[test]
+fn a_tessellated_room_furnace_matches_the_closed_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let centre = Vec3::new(3.0, 1.5, 2.0);
+    for q in [0.3f32, 0.6, 0.9] {
+        for rho in [0.5f32, 0.85] {
+            let scene = furnace_room(dir.path(), rho);
+            let s = Simplified::whole(&scene);
+            let sol = run(&scene, q);
+            let want = PI * rho / (1.0 - rho);
+            let inside: Vec<f32> = s
+                .records
+                .iter()
+                .zip(&sol.indirect)
+                .filter(|(r, _)| r.normal.dot(centre - r.position) > 0.0)
+                .map(|(_, v)| v.x / want - 1.0)
+                .collect();
+            let mean = inside.iter().sum::<f32>() / inside.len() as f32;
+            let (lo, hi) = inside.iter().fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+            println!(
+                "room furnace q = {q}, rho = {rho}: mean {:+.2}%, worst {:+.2}% / {:+.2}%, {} links",
+                100.0 * mean, 100.0 * lo, 100.0 * hi, sol.stats.links
+            );
+        }
+    }
+}

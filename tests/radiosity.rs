@@ -1058,12 +1058,21 @@ fn grid_obj(o: Vec3, u: Vec3, v: Vec3, nu: usize, nv: usize, first: &mut usize) 
     let mut obj = String::new();
     for i in 0..nu {
         for j in 0..nv {
-            let at = |a: usize, b: usize| o + u * (a as f32 / nu as f32) + v * (b as f32 / nv as f32);
+            let at =
+                |a: usize, b: usize| o + u * (a as f32 / nu as f32) + v * (b as f32 / nv as f32);
             for p in [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)] {
                 obj.push_str(&format!("v {} {} {}\n", p.x, p.y, p.z));
             }
             let n = *first;
-            obj.push_str(&format!("f {} {} {}\nf {} {} {}\n", n + 1, n + 2, n + 3, n + 1, n + 3, n + 4));
+            obj.push_str(&format!(
+                "f {} {} {}\nf {} {} {}\n",
+                n + 1,
+                n + 2,
+                n + 3,
+                n + 1,
+                n + 3,
+                n + 4
+            ));
             *first += 4;
         }
     }
@@ -1097,6 +1106,12 @@ fn furnace_room(dir: &Path, rho: f32) -> Scene {
     load(&dir.join("scene.toml"))
 }
 
+/// Links with a cluster end once carried the point kernel between the
+/// ends' centres, which errs one way for ends as large as their distance:
+/// every surface of this room gathered about 3% too much, and its records
+/// came out 7% (ρ = 0.5) to 16% (ρ = 0.85) bright at q = 0.3. The closed
+/// form is exact, so the bound is the goal alone: issue 47's 2% on the
+/// mean, at every quality.
 #[test]
 fn a_tessellated_room_furnace_matches_the_closed_form() {
     let dir = tempfile::tempdir().unwrap();
@@ -1115,10 +1130,17 @@ fn a_tessellated_room_furnace_matches_the_closed_form() {
                 .map(|(_, v)| v.x / want - 1.0)
                 .collect();
             let mean = inside.iter().sum::<f32>() / inside.len() as f32;
-            let (lo, hi) = inside.iter().fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+            let (lo, hi) = inside
+                .iter()
+                .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
             println!(
                 "room furnace q = {q}, rho = {rho}: mean {:+.2}%, worst {:+.2}% / {:+.2}%, {} links",
                 100.0 * mean, 100.0 * lo, 100.0 * hi, sol.stats.links
+            );
+            assert!(
+                mean.abs() <= 0.02,
+                "q = {q}, rho = {rho}: the inside records' mean is {:+.2}% off the closed form",
+                100.0 * mean
             );
         }
     }

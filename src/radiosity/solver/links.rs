@@ -4,6 +4,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use super::extent::{kernel, End};
 use super::hierarchy::{Hierarchy, Node, FLAT_COS, NONE};
 use super::linear::NodeRadiosity;
 use super::pruned::Pruned;
@@ -367,6 +368,12 @@ fn flat_coplanar(r: &Node, s: &Node) -> bool {
     r.plane[1] - at <= tol && (along[0] - at).abs() <= tol && (along[1] - at).abs() <= tol
 }
 
+/// The two ends of a link for [`kernel`].
+fn ends<'a>(r: &'a Node, s: &'a Node) -> (End<'a>, End<'a>) {
+    let end = |n: &'a Node| -> End<'a> { (&n.extent, n.flat.then_some(n.normal)) };
+    (end(r), end(s))
+}
+
 /// The point form factor from `x` on `r` to `s`, the larger of the two
 /// sides.
 fn ff_at(r: &Node, s: &Node, x: Vec3) -> f32 {
@@ -563,11 +570,13 @@ fn transfer(
 ) -> Transfer {
     let (nr, ns) = (h.node(r), h.node(s));
     if nr.cluster || ns.cluster {
-        let d = ns.center - nr.center;
-        let d2 = d.length_squared();
+        let dir = (ns.extent.centroid - nr.extent.centroid).normalize_or_zero();
+        // The kernel at the centres, made the average over the ends.
+        let (mean, _) = kernel(ends(nr, ns));
+        let f = |n: &Node| if n.flat { n.normal.dot(dir).abs() } else { 1.0 };
         return Transfer::Point {
-            dir: d / d2.sqrt(),
-            g: 1.0 / d2,
+            dir,
+            g: mean / (f(nr) * f(ns)).max(1e-6),
             vis: vis.overall,
         };
     }

@@ -20,6 +20,7 @@ use super::{IndirectSolution, Quality, Simplified, SolveStats};
 use crate::accel::RayEngine;
 use crate::scene::{Light, Scene};
 
+mod extent;
 mod hierarchy;
 mod linear;
 mod links;

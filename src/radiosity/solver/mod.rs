@@ -218,7 +218,7 @@ pub fn solve_posing(
             &h,
             &pending,
             engine,
-            &pruned,
+            pruned,
             params.rays_per_link,
             &weight,
             &mut samples,

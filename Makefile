@@ -17,7 +17,7 @@ RW := target/release/rangewalk
 
 export RANGEWALK_PYTHON := $(abspath $(PYTHON))
 
-.PHONY: demo test deps debs venv build lint bench clean install capi-test fuzz
+.PHONY: demo test deps debs venv build capi lint bench clean install capi-test fuzz
 
 # The framework's main job on the animated Cornell box: plan and bake base
 # images, walk the scene's path from them, path-trace every fifth frame of
@@ -26,7 +26,7 @@ export RANGEWALK_PYTHON := $(abspath $(PYTHON))
 demo: deps build
 	@rm -rf out/demo out/demo.partial && mkdir -p out/demo.partial
 	@set -o pipefail; { \
-	  $(RW) bake $(DEMO_SCENE) --quality 0.6 --frame-size $(DEMO_SIZE) --spp 8 --out out/demo.partial/bake && \
+	  $(RW) bake $(DEMO_SCENE) --quality 0.6 --frame-size $(DEMO_SIZE) --spp 8 --indirect gather --out out/demo.partial/bake && \
 	  $(RW) walk out/demo.partial/bake --path walk --size $(DEMO_SIZE) --time-interp reshade \
 	    --check-every 5 --check-spp $(DEMO_SPP) --out out/demo.partial/walk && \
 	  $(RW) synth out/demo.partial/bake --camera main --time 0.5 --size $(DEMO_SIZE) --time-interp reshade \
@@ -36,12 +36,12 @@ demo: deps build
 	@echo "demo written to out/demo/: bake/ (base images), walk/ (frames, walk.png animation, contact.png: synthesized above path-traced above FLIP error map, summary.json), synth-main-t0.5.png, summary.txt (time of every phase, error: LRMS, bias, 8x8-block LRMS and p99, FLIP)"
 	@echo "walk through it in a window: $(RW) view out/demo/bake --size $(DEMO_SIZE) (keys: docs/viewer.md; without a display: xvfb-run $(RW) view out/demo/bake --path walk --screenshot out/demo/view.png)"
 
-# capi-test runs before the pure-Rust tests: those rebuild
-# target/release/librangewalk.so without Embree and OpenImageIO.
+# The pure-Rust variant leaves out Embree and OpenImageIO, not the command line.
+PURE_RUST := --no-default-features --features cli
 test: deps build lint
 	$(CARGO) test --release
 	$(MAKE) --no-print-directory capi-test
-	$(CARGO) test --release --no-default-features
+	$(CARGO) test --release $(PURE_RUST)
 
 # The C ABI for C++ pipelines: the shared and static libraries, the header,
 # a pkg-config file and a CMake package (find_package(rangewalk)).
@@ -65,7 +65,15 @@ install: build
 CAPI := out/capi
 CAPI_PREFIX := $(abspath $(CAPI)/prefix)
 SANITIZERS := ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+# The library carries only what its API needs: no crate of the command
+# line, and no function but the rw_ calls and the glue cxx generates for
+# the OpenImageIO shim's vectors (rustc exports it; it cannot be hidden).
+CLI_CRATES := clap indicatif plotters minifb font8x8
 capi-test: build
+	@linked=$$($(CARGO) tree -e normal $(CAPI_FEATURES) --prefix none | cut -d' ' -f1 | sort -u | grep -xF $(CLI_CRATES:%=-e %) || true); \
+	  if [ -n "$$linked" ]; then echo "the C library links" $$linked; exit 1; fi
+	@others=$$(nm -D --defined-only target/release/librangewalk.so | awk '$$2 == "T" && $$3 !~ /^(rw_|cxxbridge1[$$]rust_vec[$$]rangewalk[$$]oiio[$$])/ { print $$3 }'); \
+	  if [ -n "$$others" ]; then echo "the C library exports" $$others; exit 1; fi
 	if mountpoint -q $(CAPI)/full; then umount $(CAPI)/full; fi
 	rm -rf $(CAPI)
 	$(MAKE) --no-print-directory install PREFIX=$(CAPI_PREFIX)
@@ -116,13 +124,23 @@ $(VENV)/.installed: Makefile
 	$(PYTHON) -c "import mitsuba, flip_evaluator; mitsuba.set_variant('scalar_rgb')"
 	touch $@
 
-build:
+build: capi
 	$(CARGO) build --release
+
+# The shared and static C libraries, without the `cli` feature's crates.
+# The shared one names itself, so that programs linked against an installed
+# copy find it by name, and exports only the rw_ calls: the symbols of the
+# Rust and C++ archives it is made of (cxx's among them) stay inside.
+CAPI_FEATURES := --no-default-features --features embree,oiio
+capi:
+	$(CARGO) rustc --release --lib $(CAPI_FEATURES) --crate-type cdylib,staticlib -- \
+	  -C link-arg=-Wl,-soname,librangewalk.so -C link-arg=-Wl,--exclude-libs,ALL
 
 lint:
 	$(CARGO) fmt --check
 	$(CARGO) clippy --release --all-targets -- -D warnings
-	$(CARGO) clippy --release --all-targets --no-default-features -- -D warnings
+	$(CARGO) clippy --release --all-targets $(PURE_RUST) -- -D warnings
+	$(CARGO) clippy --release --lib $(CAPI_FEATURES) -- -D warnings
 
 bench: deps
 	$(CARGO) bench

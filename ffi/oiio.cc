@@ -233,15 +233,24 @@ void write_image(rust::Str path_str, rust::Str format, const Raster &image) {
     }
 
     // Both sample types are four bytes, so the file's native pixel layout
-    // is a plain interleave of the 32-bit words.
-    std::vector<uint32_t> pixels(n * nch);
-    for (size_t c = 0; c < nch; ++c) {
-        const rust::Vec<uint32_t> &data = image.channels[c].data;
-        for (size_t i = 0; i < n; ++i)
-            pixels[i * nch + c] = data[i];
-    }
+    // is a plain interleave of the 32-bit words, made a strip of rows at a
+    // time: the whole interleaved image would hold every channel twice
+    // (over half a gigabyte for a 2,544-pixel sphere with its layers). 64
+    // rows are whole blocks of every EXR compression.
+    const size_t width = image.width, strip = 64;
+    std::vector<uint32_t> pixels(std::min<size_t>(strip, image.height) * width * nch);
     Output out = open_output(path, std::string(format).c_str(), spec);
-    bool ok = out.out->write_image(OIIO::TypeUnknown, pixels.data());
+    bool ok = true;
+    for (size_t y0 = 0; ok && y0 < image.height; y0 += strip) {
+        size_t y1 = std::min<size_t>(y0 + strip, image.height);
+        for (size_t c = 0; c < nch; ++c) {
+            const uint32_t *data = image.channels[c].data.data() + y0 * width;
+            for (size_t i = 0; i < (y1 - y0) * width; ++i)
+                pixels[i * nch + c] = data[i];
+        }
+        ok = out.out->write_scanlines(spec.y + int(y0), spec.y + int(y1), 0, OIIO::TypeUnknown,
+                                      pixels.data());
+    }
     finish(out, path, ok);
 }
 

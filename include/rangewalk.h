@@ -68,6 +68,7 @@ enum rw_indirect
  {
   RW_INDIRECT_RADIOSITY = 0,
   RW_INDIRECT_PATH = 1,
+  RW_INDIRECT_GATHER = 2,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -418,14 +419,6 @@ rw_status rw_synth_with(const rw_bake *bake,
                         const rw_synth_options *options,
                         float *rgb,
                         float *distance);
-
-// For tests of the panic boundary only: panics with `message` inside the
-// library and returns `RW_PANIC` (`RW_INVALID_ARGUMENT` if `message` is
-// NULL).
-//
-// # Safety
-// `message` is NULL or a NUL-terminated string.
-rw_status rw_test_panic(const char *message);
 
 // The scene's camera `name` as a view (`look_at` one unit ahead).
 //

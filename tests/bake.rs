@@ -673,8 +673,8 @@ fn a_bad_window_in_a_manifest_or_an_exr_is_refused_naming_the_file_and_field() {
     has(&e, &[&m.images[0].file, "data window", "`windows[0]`"]);
     // A manifest of a later version is refused as before.
     let dir = copy("later");
-    edit_manifest(&dir, |m| m["version"] = 6.into());
-    has(&refused(&dir), &["manifest.json", "`version` is 6"]);
+    edit_manifest(&dir, |m| m["version"] = 7.into());
+    has(&refused(&dir), &["manifest.json", "`version` is 7"]);
 
     // An EXR whose data window does not lie in its display window, with
     // either reader.
@@ -730,4 +730,150 @@ fn a_bake_of_manifest_version_4_reads_as_whole_images() {
     for (k, want) in before.iter().enumerate() {
         assert_eq!(&b.read_layers(k, &[]).unwrap().0, want, "image {k}");
     }
+}
+
+/// A bake of the Cornell box with windows (384²: the box covers the
+/// middle third of the sphere's side, past the first 128-pixel block), and `dir`'s copy of it as version 5 wrote
+/// it, without planes files, which is read from its EXRs.
+fn bake_and_version_5_copy(scene: &Scene, dir: &Path) -> (bake::Bake, bake::Bake) {
+    let settings = Settings {
+        size: 384,
+        spp: 1,
+        ..tiny(IndirectSource::Path)
+    };
+    let new = dir.join("v6");
+    bake_into(scene, &new, &settings, Shard::ALL);
+    let old = dir.join("v5");
+    std::fs::create_dir_all(old.join("images")).unwrap();
+    let m = bake::Manifest::read(&new).unwrap();
+    assert!(m.has_planes());
+    std::fs::copy(new.join("manifest.json"), old.join("manifest.json")).unwrap();
+    for e in &m.images {
+        std::fs::copy(new.join(&e.file), old.join(&e.file)).unwrap();
+    }
+    edit_manifest(&old, |m| m["version"] = 5.into());
+    let open = |d: &Path| bake::Bake::open(d, scene).unwrap_or_else(|e| panic!("{e:#}"));
+    (open(&new), open(&old))
+}
+
+#[test]
+fn planes_files_read_as_their_exrs_and_make_the_same_frames_bit_for_bit() {
+    use rangewalk::synth::{Options, Synthesizer, DEFAULT_BUDGET};
+    let scene = load(&scene_path("cornell-box"));
+    let tmp = tempfile::tempdir().unwrap();
+    let (new, old) = bake_and_version_5_copy(&scene, tmp.path());
+    assert!(!old.manifest.has_planes());
+    for (k, e) in new.manifest.images.iter().enumerate() {
+        let planes = new.dir.join(format!("{}.planes", e.file));
+        assert!(planes.exists(), "{} has no planes file", e.file);
+        assert!(!old.dir.join(format!("{}.planes", e.file)).exists());
+        let exr = new.read_layers(k, &[]).unwrap().0;
+        assert!(exr.meta.camera.window.is_some(), "image {k} is not cropped");
+        assert_eq!(new.read_range(k).unwrap(), exr, "image {k}");
+        assert_eq!(old.read_range(k).unwrap(), exr, "image {k}");
+    }
+    let main = scene.camera("main").unwrap();
+    let p = Projection::Perspective {
+        vfov_deg: main.vfov_deg,
+    };
+    let Some(rangewalk::scene::ViewSpace::Segment { a, b }) = scene.view_space else {
+        panic!("the Cornell box's view space is a segment");
+    };
+    let (mut lazy, mut eager) = (
+        Synthesizer::new(&scene, &new, DEFAULT_BUDGET),
+        Synthesizer::new(&scene, &old, DEFAULT_BUDGET),
+    );
+    for (s, t) in [(0.0, 0.0), (0.4, 0.5), (1.0, 0.8)] {
+        let camera = Camera::looking(a.lerp(b, s), main.direction, main.up, p, 40, 40).unwrap();
+        let (mut f, _) = lazy.frame(&camera, t, &Options::default()).unwrap();
+        let (g, _) = eager.frame(&camera, t, &Options::default()).unwrap();
+        // The provenance names the bake's folder; every pixel must agree.
+        assert!(f.meta.scene.contains("v6") && g.meta.scene.contains("v5"));
+        f.meta.scene = g.meta.scene.clone();
+        assert!(f == g, "frame at s = {s}, t = {t} differs");
+        assert!(
+            f.object_id.iter().any(|&o| o != NO_HIT),
+            "frame sees nothing"
+        );
+    }
+}
+
+#[test]
+fn a_damaged_missing_or_foreign_planes_file_is_named_when_read_and_rendered_again() {
+    let scene = load(&scene_path("cornell-box"));
+    let tmp = tempfile::tempdir().unwrap();
+    let (new, _) = bake_and_version_5_copy(&scene, tmp.path());
+    let dir = new.dir.clone();
+    let m = new.manifest.clone();
+    let planes = |k: usize| dir.join(format!("{}.planes", m.images[k].file));
+    let before: Vec<Vec<u8>> = (0..4).map(|k| std::fs::read(planes(k)).unwrap()).collect();
+    let error = |k: usize| format!("{:#}", new.read_range(k).unwrap_err());
+    let has = |e: &str, needles: &[&str]| {
+        for n in needles {
+            assert!(e.contains(n), "`{n}` not in: {e}");
+        }
+    };
+    let name = |k: usize| planes(k).display().to_string();
+
+    // A flipped bit in the last pixel's normal: the last chunk of the
+    // last plane.
+    let mut bytes = before[0].clone();
+    *bytes.last_mut().unwrap() ^= 1;
+    std::fs::write(planes(0), &bytes).unwrap();
+    let w = m.windows[m.images[0].view];
+    let last = (w.width as usize * w.height as usize - 1) / rangewalk::image::planes_file::CHUNK;
+    has(
+        &error(0),
+        &[
+            &name(0),
+            &format!("chunk {last} of plane `normal`"),
+            "damaged",
+            "run the bake again",
+        ],
+    );
+    // A changed header (the camera's first word).
+    let mut bytes = before[1].clone();
+    let at = bytes
+        .windows(10)
+        .position(|w| w == b"\"position\"")
+        .expect("the header holds the camera");
+    bytes[at + 13] ^= 1;
+    std::fs::write(planes(1), &bytes).unwrap();
+    has(&error(1), &[&name(1), "header is damaged"]);
+    // Another image's planes, whole and undamaged.
+    std::fs::write(planes(2), &before[3]).unwrap();
+    has(&error(2), &[&name(2), "another image"]);
+    // None at all, and one cut short.
+    std::fs::remove_file(planes(3)).unwrap();
+    has(&error(3), &[&name(3), "run the bake again"]);
+    let s = bake::status::status(&dir).unwrap();
+    assert_eq!(s.missing, vec![m.images[3].file.clone()], "{s:?}");
+
+    // The bake renders those four again and nothing else, and the files
+    // come back as they were.
+    let settings = new.manifest.settings;
+    let s = bake_into(&scene, &dir, &settings, Shard::ALL);
+    assert_eq!((s.rendered, s.reused, s.complete), (4, 0, true), "{s:?}");
+    for (k, want) in before.iter().enumerate() {
+        assert!(&std::fs::read(planes(k)).unwrap() == want, "image {k}");
+    }
+    std::fs::write(planes(1), &before[1][..before[1].len() - 7]).unwrap();
+    has(&error(1), &[&name(1), "cut short"]);
+}
+
+#[test]
+fn a_version_5_bake_resumed_renders_what_it_lacks_without_planes_files() {
+    let scene = load(&scene_path("cornell-box"));
+    let tmp = tempfile::tempdir().unwrap();
+    let (new, old) = bake_and_version_5_copy(&scene, tmp.path());
+    let lost = old.dir.join(&old.manifest.images[1].file);
+    std::fs::remove_file(&lost).unwrap();
+    let s = bake_into(&scene, &old.dir, &new.manifest.settings, Shard::ALL);
+    assert_eq!((s.rendered, s.reused, s.complete), (1, 3, true), "{s:?}");
+    assert!(lost.exists());
+    assert!(!bake::manifest::planes_path(&lost).exists());
+    let m = bake::Manifest::read(&old.dir).unwrap();
+    assert_eq!(m.version, 5);
+    let b = bake::Bake::open(&old.dir, &scene).unwrap();
+    assert_eq!(b.read_range(1).unwrap(), new.read_range(1).unwrap());
 }

@@ -131,6 +131,7 @@ fn a_killed_bake_started_again_equals_an_uninterrupted_one() {
         assert!(
             name.starts_with('.')
                 || name.ends_with(".exr")
+                || name.ends_with(".exr.planes")
                 || name.ends_with(".noise.json")
                 || name.ends_with(".fnv1a64"),
             "{name}"

@@ -6,13 +6,14 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use rangewalk::accel::Backend;
-use rangewalk::eval::experiment::{
-    ConvergencePoint, FrameResult, IndirectArgs, IndirectResults, PathTracerRun, QualityRun,
+use rangewalk::eval::experiments::common::convergence::ConvergencePoint;
+use rangewalk::eval::experiments::common::plot::{self, Plot, Scale, Series};
+use rangewalk::eval::experiments::common::table::Table;
+use rangewalk::eval::experiments::indirect::{
+    run_indirect, FrameResult, IndirectArgs, IndirectResults, PathTracerRun, QualityRun,
 };
 use rangewalk::eval::metrics::ImageError;
-use rangewalk::eval::plot::{self, Plot, Scale, Series};
 use rangewalk::eval::reference::Reference;
-use rangewalk::eval::report::Table;
 use rangewalk::radiosity::{SimplifyStats, SolveStats};
 
 /// Width, height and RGB bytes of a PNG file (decoded with the `png` crate,
@@ -230,7 +231,7 @@ fn results(out: PathBuf) -> IndirectResults {
 fn report_files_hold_the_measurements() {
     let dir = tempfile::tempdir().unwrap();
     let r = results(dir.path().to_path_buf());
-    rangewalk::eval::summary::write(dir.path(), &r).unwrap();
+    rangewalk::eval::experiments::indirect::report::write(dir.path(), &r).unwrap();
 
     let md = std::fs::read_to_string(dir.path().join("table.md")).unwrap();
     // Totals: 0.5 simplify + 2 decompose + 3 x (0.01 + 1) per frame.
@@ -346,7 +347,6 @@ fn command_line_errors_name_the_fault_and_write_nothing() {
 /// and the multipass renderer.
 mod end_to_end {
     use super::*;
-    use rangewalk::eval::experiment::run_indirect;
     use rangewalk::eval::flip::Flip;
 
     fn scene(name: &str) -> PathBuf {

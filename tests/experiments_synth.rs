@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use rangewalk::accel::Backend;
-use rangewalk::eval::motion::{self, MotionArgs};
-use rangewalk::eval::synthesis::{CommonArgs, SequenceArgs};
+use rangewalk::eval::experiments::common::setup::{CommonArgs, SequenceArgs};
+use rangewalk::eval::experiments::motion::{self, MotionArgs};
 use rangewalk::plan::ViewFitness;
 use rangewalk::synth::{Blend, Fill, TimeInterp};
 

@@ -443,20 +443,26 @@ fn textures_declaring_huge_sizes_are_refused_by_name() {
     assert!(message.contains("than the 67108864"), "{message}");
 }
 
+/// The sample image of `projection` as a 7x5 window at (9, 4) of a 20x12
+/// projection, and the window's camera.
+fn windowed_sample_image(projection: Projection) -> (RangeImage, Camera) {
+    let image = sample_image_of(projection, 20, 12);
+    let cropped = image.meta.camera.cropped(9, 4, 7, 5).unwrap();
+    let image = RangeImage {
+        meta: RangeMeta {
+            camera: cropped,
+            ..image.meta
+        },
+        ..sample_image(projection)
+    };
+    (image, cropped)
+}
+
 #[test]
 fn a_window_of_a_projection_round_trips_through_both_back_ends() {
     let dir = tempfile::tempdir().unwrap();
     for projection in PROJECTIONS {
-        // A 7x5 window at (9, 4) of a 20x12 projection.
-        let mut image = sample_image_of(projection, 20, 12);
-        let cropped = image.meta.camera.cropped(9, 4, 7, 5).unwrap();
-        image = RangeImage {
-            meta: RangeMeta {
-                camera: cropped,
-                ..image.meta
-            },
-            ..sample_image(projection)
-        };
+        let (image, cropped) = windowed_sample_image(projection);
         let (a, b) = (dir.path().join("a.exr"), dir.path().join("b.exr"));
         write_exr(&a, &image).unwrap();
         exr_io::write(&b, &image).unwrap();
@@ -487,4 +493,68 @@ fn a_window_of_a_projection_round_trips_through_both_back_ends() {
             assert!((pc + glam::Vec2::new(9.0, 4.0) - pw).length() < 1e-3);
         }
     }
+}
+
+#[test]
+fn a_planes_file_round_trips_bit_for_bit_and_names_the_damaged_chunk() {
+    use rangewalk::image::planes_file::{self, CHUNK};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("a.planes");
+    for projection in PROJECTIONS {
+        // A window of a projection: the camera must come back with it.
+        let (image, _) = windowed_sample_image(projection);
+        planes_file::write(&path, &image, "0123456789abcdef").unwrap();
+        assert_eq!(
+            planes_file::read(&path, "0123456789abcdef").unwrap(),
+            image,
+            "{projection:?}"
+        );
+        let e = format!(
+            "{:#}",
+            planes_file::read(&path, "fedcba9876543210").unwrap_err()
+        );
+        assert!(e.contains("a.planes") && e.contains("another image"), "{e}");
+    }
+    // Three chunks a plane; one bit of the second chunk of `distance`
+    // flipped is found, and named.
+    let (w, h) = (300, 500);
+    assert_eq!((w * h as usize).div_ceil(CHUNK), 3);
+    let image = sample_image_of(Projection::Sphere, w as u32, h);
+    planes_file::write(&path, &image, "0123456789abcdef").unwrap();
+    assert_eq!(planes_file::read(&path, "0123456789abcdef").unwrap(), image);
+    let mut bytes = std::fs::read(&path).unwrap();
+    let n = w * h as usize;
+    // The pixels lie at the end: radiance, distance, ids, normals.
+    let distance = bytes.len() - 4 * (3 + 1 + 1 + 1 + 3) * n + 12 * n;
+    let at = distance + 4 * (CHUNK + 5);
+    bytes[at] ^= 0x10;
+    std::fs::write(&path, &bytes).unwrap();
+    let e = format!(
+        "{:#}",
+        planes_file::read(&path, "0123456789abcdef").unwrap_err()
+    );
+    assert!(
+        e.contains("a.planes")
+            && e.contains("chunk 1 of plane `distance`")
+            && e.contains("damaged"),
+        "{e}"
+    );
+    // Cut short, and not a planes file at all.
+    std::fs::write(&path, &bytes[..bytes.len() - 4]).unwrap();
+    let e = format!(
+        "{:#}",
+        planes_file::read(&path, "0123456789abcdef").unwrap_err()
+    );
+    assert!(e.contains("a.planes") && e.contains("cut short"), "{e}");
+    std::fs::write(&path, b"P6 not at all").unwrap();
+    let e = format!(
+        "{:#}",
+        planes_file::read(&path, "0123456789abcdef").unwrap_err()
+    );
+    assert!(e.contains("not a rangewalk planes file"), "{e}");
+    let e = format!(
+        "{:#}",
+        planes_file::read(&dir.path().join("none.planes"), "0123456789abcdef").unwrap_err()
+    );
+    assert!(e.contains("none.planes"), "{e}");
 }

@@ -151,16 +151,16 @@ fn a_walk_replaces_only_a_walk_and_leaves_nothing_when_it_fails() {
             .collect::<Vec<_>>()
     );
 
-    // A walk that fails midway (a base image damaged after the bake, found
-    // when a frame first reads it) keeps the earlier walk and leaves no
-    // partial folder.
+    // A walk that fails midway (a base image's planes file, which frames
+    // read, damaged after the bake, found when a frame first reads it)
+    // keeps the earlier walk and leaves no partial folder.
     let manifest: serde_json::Value =
         serde_json::from_slice(&std::fs::read(bake.join("manifest.json")).unwrap()).unwrap();
     let last = manifest["images"].as_array().unwrap().last().unwrap()["file"]
         .as_str()
         .unwrap()
         .to_string();
-    let victim = bake.join(&last);
+    let victim = bake.join(format!("{last}.planes"));
     let bytes = std::fs::read(&victim).unwrap();
     std::fs::write(&victim, &bytes[..bytes.len() / 2]).unwrap();
     let before = tree(&out);

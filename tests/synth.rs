@@ -294,9 +294,14 @@ fn subpixels_show_each_surface_by_its_share_where_a_silhouette_crosses_a_pixel()
     // Pixels beside a silhouette (a neighbour shows another object), away
     // from the light, whose rim is traced rather than resampled.
     let mut e = engine(&scene, 0.0);
-    let lit = rangewalk::eval::synthesis::emitter_free(&scene, e.as_mut(), &camera, 0.0)
-        .unwrap()
-        .expect("the light is in view");
+    let lit = rangewalk::eval::experiments::common::synthesize::emitter_free(
+        &scene,
+        e.as_mut(),
+        &camera,
+        0.0,
+    )
+    .unwrap()
+    .expect("the light is in view");
     let edge: Vec<bool> = (0..w * h)
         .map(|k| {
             let (x, y) = (k % w, k / w);
@@ -694,9 +699,10 @@ fn bad_input_is_refused_and_leaves_nothing_half_written() {
     assert!(out.exists());
     std::fs::remove_file(&out).unwrap();
 
-    // A damaged base image: an error naming it, no frame written.
+    // A damaged base image (the planes file synthesis reads): an error
+    // naming it, no frame written.
     let m = bake::Manifest::read(&bake_dir).unwrap();
-    let victim = bake_dir.join(&m.images[0].file);
+    let victim = bake::manifest::planes_path(&bake_dir.join(&m.images[0].file));
     let mut bytes = std::fs::read(&victim).unwrap();
     let n = bytes.len();
     bytes.truncate(n / 2);
@@ -1152,7 +1158,7 @@ fn between_base_times_the_moving_boxes_are_as_right_as_at_a_base_time() {
     };
     let baked = bake_into(&scene, dir.path(), &with_records, ends(&scene, &[0.0, 1.0]));
     let (simplified, series) =
-        rangewalk::radiosity::bake::load(&dir.path().join("radiosity")).unwrap();
+        rangewalk::radiosity::store::load(&dir.path().join("radiosity")).unwrap();
     let mut synth = Synthesizer::new(&scene, &baked, DEFAULT_BUDGET);
     let opts = Options {
         time_interp: TimeInterp::Reshade,

@@ -200,7 +200,7 @@ fn comparison_is_relative_and_safe_for_darkness() {
 /// that name the file and field at fault.
 mod bake {
     use super::*;
-    use rangewalk::radiosity::bake::{self, load, partial_path, save};
+    use rangewalk::radiosity::store::{self, load, partial_path, save};
     use std::fs;
     use std::path::Path;
 
@@ -287,7 +287,7 @@ mod bake {
         let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().join("cb.bake");
         baked(&dir);
-        let manifest = dir.join(bake::MANIFEST);
+        let manifest = dir.join(store::MANIFEST);
         let original = fs::read_to_string(&manifest).unwrap();
 
         // Truncated binary file.

@@ -25,11 +25,14 @@ use crate::render::noise::NoiseReport;
 
 /// Identifies a base-image bake manifest.
 pub const FORMAT: &str = "rangewalk-base-images";
-/// Bumped whenever the layout changes. Version 5 records each view's
-/// window (partial base images), version 4 the sampling settings and each
-/// image's noise, version 3 the planning settings; versions 2 to 4 are
+/// Bumped whenever the layout changes. Version 6 gives each image a
+/// planes file ([`planes_path`]), version 5 records each view's window
+/// (partial base images), version 4 the sampling settings and each
+/// image's noise, version 3 the planning settings; versions 2 to 5 are
 /// read too (see [`Manifest::read`]); others are refused.
-pub const VERSION: u32 = 5;
+pub const VERSION: u32 = 6;
+/// The first version whose images have planes files.
+pub const PLANES_SINCE: u32 = 6;
 pub const MANIFEST: &str = "manifest.json";
 /// The object-space bake (radiosity), when indirect light comes from it.
 pub const RADIOSITY: &str = "radiosity";
@@ -103,7 +106,7 @@ impl Manifest {
             m.windows = vec![BaseWindow::whole(m.settings.size); m.plan.views.len()];
         }
         match m.version {
-            VERSION | 3 | 4 => {}
+            VERSION | 3..=5 => {}
             // Version 2 did not record the planning settings, but its plans
             // did, as made: the id-image side, whether one master list, and
             // the view fitness (ids, the only one there was before plans
@@ -196,6 +199,12 @@ impl Manifest {
         Ok(())
     }
 
+    /// Whether each image has a planes file beside it, which synthesis
+    /// reads instead of the EXR (bakes before version 6 have none).
+    pub fn has_planes(&self) -> bool {
+        self.version >= PLANES_SINCE
+    }
+
     /// Writes the manifest atomically (a reader sees the old or the new one).
     pub fn write(&self, dir: &Path) -> Result<()> {
         let text = serde_json::to_string_pretty(self).context("encoding the bake manifest")?;
@@ -210,6 +219,14 @@ pub fn checksum_path(image: &Path) -> PathBuf {
     PathBuf::from(name)
 }
 
+/// The planes file beside an image (`image::planes_file`): its range
+/// image raw, which synthesis reads without decoding the EXR.
+pub fn planes_path(image: &Path) -> PathBuf {
+    let mut name = image.as_os_str().to_os_string();
+    name.push(".planes");
+    PathBuf::from(name)
+}
+
 /// The image's checksum: of its content (channels and metadata), not of
 /// its bytes, so that it is the same whichever EXR writer made the file.
 /// `None` where the file is missing or cannot be read (cut short, corrupt).
@@ -219,10 +236,14 @@ pub fn checksum_of(path: &Path) -> Option<String> {
 
 /// Whether the image is finished and undamaged: it reads, and its content
 /// matches the checksum recorded after it was written (`expected` where the
-/// manifest already holds it, else the checksum file).
-pub fn verify(path: &Path, expected: Option<&str>) -> bool {
+/// manifest already holds it, else the checksum file); with `planes`, its
+/// planes file reads too, every chunk matching, made with that image.
+pub fn verify(path: &Path, expected: Option<&str>, planes: bool) -> bool {
     path.exists()
-        && recorded(path, expected).is_some_and(|sum| checksum_of(path).as_ref() == Some(&sum))
+        && recorded(path, expected).is_some_and(|sum| {
+            checksum_of(path).as_ref() == Some(&sum)
+                && (!planes || image::planes_file::read(&planes_path(path), &sum).is_ok())
+        })
 }
 
 /// The checksum recorded for an image: the manifest's (`expected`) where

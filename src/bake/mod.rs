@@ -21,7 +21,6 @@ use std::time::Instant;
 
 use anyhow::{bail, ensure, Context, Result};
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 
 use crate::accel::{Backend, InstancedEngine};
@@ -29,9 +28,10 @@ use crate::camera::{Camera, Projection};
 use crate::checksum::Fnv;
 use crate::image::{self, RangeImage};
 use crate::plan::{self, Plan, ViewFitness};
+use crate::progress::{ProgressBar, ProgressStyle};
 use crate::radiosity::lookup::IrradianceCache;
 use crate::radiosity::temporal::TimeSeries;
-use crate::radiosity::{self, bake as radiosity_bake, Quality, Simplified};
+use crate::radiosity::{self, store as radiosity_store, Quality, Simplified};
 use crate::render::multipass::{self, Indirect};
 use crate::render::noise::NoiseReport;
 use crate::render::{Progress, RenderSettings};
@@ -99,8 +99,17 @@ pub enum BaseProjection {
 pub enum IndirectSource {
     /// Looked up from radiosity records interpolated in time (§4.3–4.4).
     Radiosity,
+    /// Radiosity records seen through one traced bounce at the surfaces a base shows (a final gather): where surfaces meet, the darkening the records miss.
+    Gather,
     /// Traced: one diffuse bounce per sample continued by the path tracer.
     Path,
+}
+
+impl IndirectSource {
+    /// Whether the bake solves for radiosity records.
+    pub fn uses_records(self) -> bool {
+        matches!(self, Self::Radiosity | Self::Gather)
+    }
 }
 
 /// Everything that decides a bake's images besides its [`Sampling`]. A
@@ -379,7 +388,11 @@ pub fn run_observed(
     let mut checked = vec![false; manifest.images.len()];
     for &k in &mine {
         let e = &manifest.images[k];
-        if manifest::verify(&dir.join(&e.file), e.fnv1a64.as_deref()) {
+        if manifest::verify(
+            &dir.join(&e.file),
+            e.fnv1a64.as_deref(),
+            manifest.has_planes(),
+        ) {
             summary.reused += 1;
             checked[k] = true;
         } else {
@@ -389,7 +402,7 @@ pub fn run_observed(
 
     if !todo.is_empty() {
         let indirect = match settings.indirect {
-            IndirectSource::Radiosity => {
+            IndirectSource::Radiosity | IndirectSource::Gather => {
                 let (s, series, seconds) = radiosity_once(scene, dir, quality, engine, &me)?;
                 summary.radiosity_seconds = seconds;
                 Some((s, series))
@@ -492,7 +505,7 @@ pub fn prepare(
     if setup.anyone().is_none() {
         summary.removed = setup.remove_temporaries()?;
     }
-    if settings.indirect == IndirectSource::Radiosity {
+    if settings.indirect.uses_records() {
         let quality = Quality::new(settings.quality).context("--quality")?;
         summary.radiosity_seconds = radiosity_stage(scene, dir, quality, engine)?.2;
     }
@@ -534,7 +547,7 @@ fn radiosity_once(
 ) -> Result<(Simplified, TimeSeries, Option<f64>)> {
     let solved = || {
         dir.join(manifest::RADIOSITY)
-            .join(radiosity_bake::MANIFEST)
+            .join(radiosity_store::MANIFEST)
             .exists()
     };
     if solved() {
@@ -767,8 +780,8 @@ fn radiosity_stage(
     engine: &mut dyn InstancedEngine,
 ) -> Result<(Simplified, TimeSeries, Option<f64>)> {
     let path = dir.join(manifest::RADIOSITY);
-    if path.join(radiosity_bake::MANIFEST).exists() {
-        let (simplified, series, _) = radiosity_bake::load_for(&path, scene, Some(quality))?;
+    if path.join(radiosity_store::MANIFEST).exists() {
+        let (simplified, series, _) = radiosity_store::load_for(&path, scene, Some(quality))?;
         return Ok((simplified, series, None));
     }
     let start = Instant::now();
@@ -778,7 +791,7 @@ fn radiosity_stage(
     );
     engine.set_transforms(&scene.at(scene.animation.start))?;
     let (simplified, series) = radiosity::simplify_and_decompose(scene, engine, quality)?;
-    radiosity_bake::save(&path, scene, &simplified, &series)?;
+    radiosity_store::save(&path, scene, &simplified, &series)?;
     Ok((simplified, series, Some(start.elapsed().as_secs_f64())))
 }
 
@@ -809,9 +822,10 @@ fn render_image(
     let cache = indirect
         .map(|(s, series)| IrradianceCache::new(s, &series.indirect_at(e.time)))
         .transpose()?;
-    let source = match &cache {
-        Some(c) => Indirect::Records(c),
-        None => Indirect::Traced,
+    let source = match (&cache, settings.indirect) {
+        (Some(c), IndirectSource::Gather) => Indirect::Gathered(c),
+        (Some(c), _) => Indirect::Records(c),
+        (None, _) => Indirect::Traced,
     };
     let out = multipass::render_base(
         scene,
@@ -840,6 +854,15 @@ fn render_image(
             (DIFFUSE_DIRECT, &out.diffuse_direct),
         ],
     )?;
+    // Bakes of older versions resumed by this one are read from their
+    // EXRs: a planes file there would never be read.
+    if manifest.has_planes() {
+        image::planes_file::write(
+            &manifest::planes_path(&path),
+            &out.image,
+            &manifest::hex(sum),
+        )?;
+    }
     let report = out.sampling.report;
     sampling::write_report(&path, &report)?;
     crate::output::write_file(
@@ -910,14 +933,38 @@ impl Bake {
         })
     }
 
+    /// Image `k`'s range image without its light layers, as synthesis
+    /// reads it: from its planes file, each chunk checked as it is read,
+    /// where the bake has them (version 6 on), else decoded from its EXR
+    /// and checked whole.
+    pub fn read_range(&self, k: usize) -> Result<RangeImage> {
+        if !self.manifest.has_planes() {
+            return Ok(self.read_layers(k, &[])?.0);
+        }
+        let e = self.entry(k)?;
+        let path = manifest::planes_path(&self.dir.join(&e.file));
+        // `open` refuses incomplete bakes: every image has its checksum.
+        let sum = e.fnv1a64.as_deref().unwrap_or_default();
+        let image = image::planes_file::read(&path, sum).map_err(|err| {
+            anyhow::anyhow!(
+                "{err:#}; run the bake again (the same `rangewalk bake` command) to re-render it"
+            )
+        })?;
+        self.check_window(e, &path, &image)?;
+        Ok(image)
+    }
+
+    fn entry(&self, k: usize) -> Result<&ImageEntry> {
+        self.manifest
+            .images
+            .get(k)
+            .with_context(|| format!("{}: no image {k}", self.dir.display()))
+    }
+
     /// Reads image `k` and the named light layers (of [`DIRECT`],
     /// [`INDIRECT`], [`DIFFUSE_DIRECT`]), checking its checksum.
     pub fn read_layers(&self, k: usize, layers: &[&str]) -> Result<(RangeImage, Vec<Vec<Vec3>>)> {
-        let e = self
-            .manifest
-            .images
-            .get(k)
-            .with_context(|| format!("{}: no image {k}", self.dir.display()))?;
+        let e = self.entry(k)?;
         let path = self.dir.join(&e.file);
         let damaged = || {
             anyhow::anyhow!(
@@ -932,6 +979,11 @@ impl Bake {
         if e.fnv1a64.as_deref() != Some(manifest::hex(sum).as_str()) {
             return Err(damaged());
         }
+        self.check_window(e, &path, &image)?;
+        Ok((image, layers))
+    }
+
+    fn check_window(&self, e: &ImageEntry, path: &Path, image: &RangeImage) -> Result<()> {
         // The checksum holds the window the image was written with; the
         // manifest's must be that one, or pixels would be put in the
         // wrong directions.
@@ -948,12 +1000,12 @@ impl Bake {
         if window != Some(&held) || camera.full_size() != (size, size) {
             let (fw, fh) = camera.full_size();
             bail!(
-                "{}: its EXR data window, {held} of a {fw}x{fh} display window, is not the manifest's `windows[{}]`, {} of {size}x{size}: the bake is inconsistent; bake it again into a new directory",
+                "{}: its data window, {held} of a {fw}x{fh} display window, is not the manifest's `windows[{}]`, {} of {size}x{size}: the bake is inconsistent; bake it again into a new directory",
                 path.display(),
                 e.view,
                 window.map_or("absent".to_string(), |w| w.to_string())
             );
         }
-        Ok((image, layers))
+        Ok(())
     }
 }

@@ -10,8 +10,8 @@ use rayon::prelude::*;
 
 use super::lock::{self, Holder};
 use super::manifest::{self, Manifest, RADIOSITY};
-use super::{sampling, IndirectSource, Shard};
-use crate::radiosity::bake as radiosity_bake;
+use super::{sampling, Shard};
+use crate::radiosity::store as radiosity_store;
 use crate::render::noise::NoiseReport;
 
 /// What a bake directory holds now.
@@ -54,7 +54,7 @@ pub fn status(dir: &Path) -> Result<Status> {
     let missing: Vec<String> = m
         .images
         .iter()
-        .filter(|e| !is_done(dir, e))
+        .filter(|e| !is_done(dir, &m, e))
         .map(|e| e.file.clone())
         .collect();
     Ok(Status {
@@ -122,18 +122,22 @@ fn noise(dir: &Path, m: &Manifest, missing: &[String]) -> Option<NoiseReport> {
 }
 
 fn radiosity_solved(dir: &Path, m: &Manifest) -> Option<bool> {
-    (m.settings.indirect == IndirectSource::Radiosity)
-        .then(|| dir.join(RADIOSITY).join(radiosity_bake::MANIFEST).exists())
+    m.settings
+        .indirect
+        .uses_records()
+        .then(|| dir.join(RADIOSITY).join(radiosity_store::MANIFEST).exists())
 }
 
 /// How many images of `m` are done (as [`status`] counts them).
 pub(super) fn done(dir: &Path, m: &Manifest) -> usize {
-    m.images.iter().filter(|e| is_done(dir, e)).count()
+    m.images.iter().filter(|e| is_done(dir, m, e)).count()
 }
 
-fn is_done(dir: &Path, e: &manifest::ImageEntry) -> bool {
+fn is_done(dir: &Path, m: &Manifest, e: &manifest::ImageEntry) -> bool {
     let path = dir.join(&e.file);
-    path.exists() && manifest::recorded(&path, e.fnv1a64.as_deref()).is_some()
+    path.exists()
+        && (!m.has_planes() || manifest::planes_path(&path).exists())
+        && manifest::recorded(&path, e.fnv1a64.as_deref()).is_some()
 }
 
 /// Verifies the images not marked in `checked` and, when every image is
@@ -145,6 +149,7 @@ pub(super) fn seal(dir: &Path, m: &mut Manifest, checked: &[bool]) -> Result<Vec
         .iter()
         .map(|e| manifest::recorded(&dir.join(&e.file), e.fnv1a64.as_deref()))
         .collect();
+    let planes = m.has_planes();
     // Reading images back is the finishing job's whole work: on all its
     // cores.
     let bad: Vec<String> = m
@@ -153,7 +158,7 @@ pub(super) fn seal(dir: &Path, m: &mut Manifest, checked: &[bool]) -> Result<Vec
         .zip(&recorded)
         .zip(checked)
         .filter(|((e, sum), &ok)| {
-            sum.is_none() || (!ok && !manifest::verify(&dir.join(&e.file), sum.as_deref()))
+            sum.is_none() || (!ok && !manifest::verify(&dir.join(&e.file), sum.as_deref(), planes))
         })
         .map(|((e, _), _)| e.file.clone())
         .collect();

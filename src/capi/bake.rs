@@ -27,6 +27,7 @@ pub enum rw_projection {
 pub enum rw_indirect {
     RW_INDIRECT_RADIOSITY = 0,
     RW_INDIRECT_PATH = 1,
+    RW_INDIRECT_GATHER = 2,
 }
 
 /// The options of `rangewalk bake`. Start from `rw_bake_options_default`
@@ -123,6 +124,7 @@ fn settings(
     let indirect = match o.indirect {
         0 => IndirectSource::Radiosity,
         1 => IndirectSource::Path,
+        2 => IndirectSource::Gather,
         i => {
             return Err(Failure::invalid(format!(
                 "options->indirect {i} is not an rw_indirect"

@@ -110,3 +110,33 @@ pub unsafe extern "C" fn rw_last_error(buf: *mut c_char, len: usize) -> usize {
         message.len()
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An exported body that panics, as a bug in the library would.
+    extern "C" fn panicking() -> rw_status {
+        guard(|| panic!("forced for the test"))
+    }
+
+    fn last_error() -> String {
+        let mut buf = [0 as c_char; 256];
+        // SAFETY: `buf` holds `buf.len()` writable bytes.
+        let n = unsafe { rw_last_error(buf.as_mut_ptr(), buf.len()) };
+        let bytes: Vec<u8> = buf[..n].iter().map(|&c| c as u8).collect();
+        String::from_utf8(bytes).unwrap()
+    }
+
+    #[test]
+    fn a_panic_becomes_rw_panic_with_its_message_and_the_next_call_works() {
+        assert_eq!(panicking(), rw_status::RW_PANIC);
+        assert_eq!(last_error(), "rangewalk panicked: forced for the test");
+        assert_eq!(guard(|| Ok(())), rw_status::RW_OK);
+        assert_eq!(
+            guard(|| Err(Failure::invalid("after the panic"))),
+            rw_status::RW_INVALID_ARGUMENT
+        );
+        assert_eq!(last_error(), "after the panic");
+    }
+}

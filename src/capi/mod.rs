@@ -19,5 +19,4 @@ pub mod render;
 pub mod scene;
 pub mod status;
 pub mod synth;
-pub mod testing;
 pub mod view;

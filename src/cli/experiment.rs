@@ -5,8 +5,11 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use rangewalk::accel::Backend;
-use rangewalk::eval::walkthrough::{self, BakeViews};
-use rangewalk::eval::{experiment, motion, synthesis, views};
+use rangewalk::eval::experiments::common::sequence::SequenceQuality;
+use rangewalk::eval::experiments::common::setup::{CommonArgs, SequenceArgs};
+use rangewalk::eval::experiments::common::synthesize::mean_flip;
+use rangewalk::eval::experiments::walkthrough::{self, BakeViews};
+use rangewalk::eval::experiments::{indirect, motion, views};
 use rangewalk::image;
 use rangewalk::plan::ViewFitness;
 use rangewalk::scene::ViewSpace;
@@ -42,7 +45,7 @@ pub enum Experiment {
 }
 
 /// One line per quality and time interpolation of a sequence experiment.
-fn sequence_summary(qualities: &[synthesis::SequenceQuality]) {
+fn sequence_summary(qualities: &[SequenceQuality]) {
     for q in qualities {
         for m in &q.modes {
             println!(
@@ -56,7 +59,7 @@ fn sequence_summary(qualities: &[synthesis::SequenceQuality]) {
                 m.mean_lrms(),
                 m.mean_block_lrms(),
                 m.mean_block_p99(),
-                synthesis::mean_flip(&m.frames)
+                mean_flip(&m.frames)
                     .map_or(String::new(), |f| format!(", mean FLIP {f:.4}"))
             );
         }
@@ -67,7 +70,7 @@ fn sequence_summary(qualities: &[synthesis::SequenceQuality]) {
 pub fn run(experiment: Experiment) -> Result<()> {
     match experiment {
         Experiment::Indirect(args) => {
-            let r = experiment::run_indirect(&args.into())?;
+            let r = indirect::run_indirect(&args.into())?;
             for q in &r.qualities {
                 let lrms: f64 =
                     q.frames.iter().map(|f| f.error.lrms).sum::<f64>() / q.frames.len() as f64;
@@ -149,7 +152,7 @@ pub struct Indirect {
     pub no_flip: bool,
 }
 
-impl From<Indirect> for experiment::IndirectArgs {
+impl From<Indirect> for indirect::IndirectArgs {
     fn from(a: Indirect) -> Self {
         Self {
             scene: a.scene,
@@ -212,7 +215,7 @@ pub struct Common {
     pub no_flip: bool,
 }
 
-impl From<Common> for synthesis::CommonArgs {
+impl From<Common> for CommonArgs {
     fn from(a: Common) -> Self {
         Self {
             scene: a.scene,
@@ -252,7 +255,7 @@ pub struct Sequence {
     pub fill: Fill,
 }
 
-impl From<Sequence> for synthesis::SequenceArgs {
+impl From<Sequence> for SequenceArgs {
     fn from(a: Sequence) -> Self {
         Self {
             frames: a.frames,

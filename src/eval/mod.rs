@@ -1,16 +1,10 @@
-//! Image error against references and the experiments that reproduce the
+//! Image error against references (LRMS and its relatives, FLIP), the
+//! walk's reference checks, and the experiments that reproduce the
 //! paper's tables.
 
-pub mod experiment;
+pub mod experiments;
 pub mod flip;
 pub mod metrics;
-pub mod motion;
-pub mod plot;
 pub mod reference;
-pub mod report;
-mod staging;
-pub mod summary;
-pub mod synthesis;
-pub mod views;
+pub mod sheet;
 pub mod walkcheck;
-pub mod walkthrough;

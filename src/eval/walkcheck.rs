@@ -16,7 +16,7 @@ use glam::Vec3;
 use super::flip::Flip;
 use super::metrics;
 use super::reference::path_trace_image;
-use super::summary::write_sheet_srgb8;
+use super::sheet::write_sheet_srgb8;
 use crate::camera::Camera;
 use crate::image::{self, RangeImage};
 use crate::synth::walk::{FrameCheck, FrameChecker};

@@ -16,7 +16,7 @@ pub fn write(path: impl AsRef<Path>, image: &RangeImage) -> Result<()> {
     let path = path.as_ref();
     let planes =
         Planes::from_range(image).with_context(|| format!("writing {}", path.display()))?;
-    write_atomically(path, |tmp| write_planes(tmp, &planes))
+    write_atomically(path, |tmp| write_planes(tmp, planes))
 }
 
 /// Reads a range image written by [`write`] or by the OpenImageIO back end.
@@ -41,16 +41,18 @@ fn text(s: &str) -> Text {
     Text::from_slice_unchecked(s.as_bytes())
 }
 
-pub(super) fn write_planes(path: &Path, planes: &Planes) -> Result<()> {
+/// Takes the planes by value: their samples move into the encoder, so no
+/// second copy of the image is made.
+pub(super) fn write_planes(path: &Path, planes: Planes) -> Result<()> {
     let channels = planes
         .channels
-        .iter()
+        .into_iter()
         .map(|(name, plane)| {
             let samples = match plane {
-                Plane::F32(v) => FlatSamples::F32(v.clone()),
-                Plane::U32(v) => FlatSamples::U32(v.clone()),
+                Plane::F32(v) => FlatSamples::F32(v),
+                Plane::U32(v) => FlatSamples::U32(v),
             };
-            AnyChannel::new(text(name), samples)
+            AnyChannel::new(text(&name), samples)
         })
         .collect();
     let mut attributes = LayerAttributes::default();

@@ -31,6 +31,7 @@ pub mod exr_io;
 #[allow(unsafe_code)]
 mod oiio;
 mod planes;
+pub mod planes_file;
 pub mod png_io;
 pub mod rgbe;
 mod texture;
@@ -185,7 +186,7 @@ pub fn write_exr(path: impl AsRef<Path>, image: &RangeImage) -> Result<()> {
         let path = path.as_ref();
         let planes = planes::Planes::from_range(image)
             .with_context(|| format!("writing {}", path.display()))?;
-        write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Exr, &planes))
+        write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Exr, planes))
     }
     #[cfg(not(feature = "oiio"))]
     exr_io::write(path, image)
@@ -221,11 +222,12 @@ pub fn write_exr_with_layers(
         Ok::<_, anyhow::Error>(planes)
     })()
     .with_context(|| format!("writing {}", path.display()))?;
+    let hash = planes.content_hash();
     #[cfg(feature = "oiio")]
-    write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Exr, &planes))?;
+    write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Exr, planes))?;
     #[cfg(not(feature = "oiio"))]
-    write_atomically(path, |tmp| exr_io::write_planes(tmp, &planes))?;
-    Ok(planes.content_hash())
+    write_atomically(path, |tmp| exr_io::write_planes(tmp, planes))?;
+    Ok(hash)
 }
 
 /// A hash of an EXR file's channels and `rangewalk:*` attributes,
@@ -299,7 +301,7 @@ pub fn write_hdr(path: impl AsRef<Path>, width: u32, height: u32, radiance: &[Ve
         let path = path.as_ref();
         let planes = rgb_planes(width, height, radiance)
             .with_context(|| format!("writing {}", path.display()))?;
-        write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Hdr, &planes))
+        write_atomically(path, |tmp| oiio::write(tmp, oiio::Format::Hdr, planes))
     }
     #[cfg(not(feature = "oiio"))]
     rgbe::write(path, width, height, radiance)

@@ -10,7 +10,7 @@ use std::path::Path;
 use anyhow::{anyhow, Result};
 use rayon::prelude::*;
 
-use super::planes::{gathered, Attr, DataWindow, Plane, Planes};
+use super::planes::{Attr, DataWindow, Plane, Planes};
 use super::{Texture, MAX_PIXELS};
 
 #[cxx::bridge(namespace = "rangewalk::oiio")]
@@ -92,7 +92,9 @@ pub enum Format {
 }
 
 /// Writes `planes` to `path` in `format`, whatever the file's extension.
-pub fn write(path: &Path, format: Format, planes: &Planes) -> Result<()> {
+/// Takes them by value: their samples become the shim's words in place,
+/// so no second copy of the image is made.
+pub fn write(path: &Path, format: Format, planes: Planes) -> Result<()> {
     let d = planes.window.unwrap_or(DataWindow {
         x: 0,
         y: 0,
@@ -108,38 +110,33 @@ pub fn write(path: &Path, format: Format, planes: &Planes) -> Result<()> {
         full_height: d.full_height,
         channels: planes
             .channels
-            .iter()
-            .map(|(name, plane)| {
-                let size = (planes.width, planes.height);
-                Ok(match plane {
-                    Plane::F32(v) => ffi::Channel {
-                        name: name.clone(),
-                        sample: ffi::Sample::F32,
-                        data: gathered(v, |x| x.to_bits(), size)?,
-                    },
-                    Plane::U32(v) => ffi::Channel {
-                        name: name.clone(),
-                        sample: ffi::Sample::U32,
-                        data: gathered(v, |&x| x, size)?,
-                    },
-                })
+            .into_iter()
+            .map(|(name, plane)| match plane {
+                // Collected into the plane's own allocation (floats and
+                // words are of one size).
+                Plane::F32(v) => ffi::Channel {
+                    name,
+                    sample: ffi::Sample::F32,
+                    data: v.into_iter().map(f32::to_bits).collect(),
+                },
+                Plane::U32(data) => ffi::Channel {
+                    name,
+                    sample: ffi::Sample::U32,
+                    data,
+                },
             })
-            .collect::<Result<_>>()?,
+            .collect(),
         integer_samples: false,
         attributes: planes
             .attributes
-            .iter()
+            .into_iter()
             .map(|(name, attr)| {
                 let (floats, text) = match attr {
-                    Attr::Float(x) => (vec![*x], String::new()),
+                    Attr::Float(x) => (vec![x], String::new()),
                     Attr::Vector(v) => (v.to_vec(), String::new()),
-                    Attr::Text(s) => (Vec::new(), s.clone()),
+                    Attr::Text(s) => (Vec::new(), s),
                 };
-                ffi::Attribute {
-                    name: name.clone(),
-                    floats,
-                    text,
-                }
+                ffi::Attribute { name, floats, text }
             })
             .collect(),
     };

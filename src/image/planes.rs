@@ -90,11 +90,7 @@ fn split(v: &[Vec3]) -> [Vec<f32>; 3] {
 /// `values` gathered into a new plane by `f`, or an error saying what the
 /// copy of a `w`×`h` image for writing needs where memory is short (a
 /// frame as large as memory allows has no room for a second copy).
-pub(super) fn gathered<T, U>(
-    values: &[T],
-    f: impl Fn(&T) -> U,
-    (w, h): (u32, u32),
-) -> Result<Vec<U>> {
+fn gathered<T, U>(values: &[T], f: impl Fn(&T) -> U, (w, h): (u32, u32)) -> Result<Vec<U>> {
     let mut plane = Vec::new();
     crate::alloc::reserve(&mut plane, values.len(), || {
         format!("a plane of the {w}x{h} range image's copy for writing")

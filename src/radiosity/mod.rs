@@ -22,11 +22,11 @@ use glam::Vec3;
 use crate::bsdf::Lobes;
 use crate::scene::{Bsdf, Scene};
 
-pub mod bake;
 pub mod formfactor;
 pub mod lookup;
 pub mod simplify;
 pub mod solver;
+pub mod store;
 pub mod temporal;
 
 pub use simplify::simplify;

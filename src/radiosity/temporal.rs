@@ -26,10 +26,10 @@ use std::time::Instant;
 
 use anyhow::{ensure, Context, Result};
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{IndirectSolution, Quality, Simplified};
 use crate::accel::{InstancedEngine, RayEngine};
+use crate::progress::{ProgressBar, ProgressStyle};
 use crate::scene::Scene;
 
 /// Solutions at the times chosen by recursive bisection, in time order.

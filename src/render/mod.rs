@@ -11,12 +11,12 @@ use std::time::Instant;
 
 use anyhow::{ensure, Result};
 use glam::{DVec3, Vec3};
-use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
 use crate::accel::RayEngine;
 use crate::camera::Camera;
 use crate::image::{RangeImage, RangeMeta, NO_HIT};
+use crate::progress::{ProgressBar, ProgressStyle};
 use crate::ray::Ray;
 use crate::scene::Scene;
 

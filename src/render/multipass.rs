@@ -13,7 +13,13 @@
 //!   part takes it with weight one; the glossy part shares it with the
 //!   sampled glossy ray by multiple importance sampling;
 //! * diffuse indirect light `ρ/π · E`, with `E` the records' irradiance at
-//!   the hit's object-space point and normal (`IrradianceCache`);
+//!   the hit's object-space point and normal (`IrradianceCache`), or, with
+//!   [`Indirect::Gathered`], gathered at surfaces seen directly or in
+//!   mirrors through one traced bounce whose hit reflects its direct light
+//!   and its records' irradiance (the final gather of Chen et al. 1991,
+//!   the paper's [8]): records hold an element's mean light, so where a
+//!   surface meets another (a room's corners, a box on the floor) they
+//!   miss the darkening that the bounce's geometry finds;
 //! * a traced reflection: mirrors exactly, glossy lobes by sampling their
 //!   specular part only (their diffuse part is covered by the records).
 //!
@@ -53,6 +59,9 @@ pub enum Indirect<'a> {
     /// Radiosity records interpolated to the rendered time (the paper's
     /// multipass renderer).
     Records(&'a IrradianceCache),
+    /// The records seen through one cosine-sampled bounce per sample at
+    /// surfaces seen directly or in mirrors (looked up elsewhere).
+    Gathered(&'a IrradianceCache),
     /// One cosine-sampled bounce per sample, continued by the path tracer:
     /// unbiased, for base images where no radiosity bake is wanted.
     Traced,
@@ -184,6 +193,7 @@ fn layers(
         poses: scene.at(time),
         indirect: match indirect {
             Indirect::Records(cache) => Source::Records(cache),
+            Indirect::Gathered(cache) => Source::Gathered(cache),
             Indirect::Traced => Source::Traced(Integrator {
                 scene,
                 engine,
@@ -205,6 +215,7 @@ fn layers(
             engine.name(),
             match indirect {
                 Indirect::Records(_) => "from radiosity records",
+                Indirect::Gathered(_) => "radiosity records gathered",
                 Indirect::Traced => "traced",
             },
             settings.spp,
@@ -245,6 +256,7 @@ fn layers(
 
 enum Source<'a> {
     Records(&'a IrradianceCache),
+    Gathered(&'a IrradianceCache),
     Traced(Integrator<'a>),
 }
 
@@ -346,14 +358,13 @@ impl Multipass<'_> {
             if let Some(Lobes::Diffuse { albedo }) = diffuse {
                 if albedo != Vec3::ZERO {
                     let li = match &self.indirect {
-                        Source::Records(cache) if segments + 2 <= self.max_depth => {
-                            let e = cache.irradiance(
-                                hit.object,
-                                surface.front(),
-                                surface.local,
-                                surface.local_normal(),
-                            );
-                            beta * albedo * FRAC_1_PI * e
+                        Source::Gathered(cache) if sharp && segments + 3 <= self.max_depth => {
+                            beta * self.gather(cache, p, ng, frame, wo_l, albedo, rng, rays)
+                        }
+                        Source::Records(cache) | Source::Gathered(cache)
+                            if segments + 2 <= self.max_depth =>
+                        {
+                            beta * albedo * FRAC_1_PI * recorded(cache, &surface, hit.object)
                         }
                         Source::Traced(integrator) if segments + 2 <= self.traced_depth => {
                             let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
@@ -420,6 +431,51 @@ impl Multipass<'_> {
         (u, u1, u2)
     }
 
+    /// Diffuse indirect light at `p` by one cosine-sampled bounce: what its
+    /// hit reflects of one light sample and of its records' irradiance.
+    /// Emission met there is direct light, which light samples at `p`
+    /// count; a mirror met there reflects only its direct light.
+    #[allow(clippy::too_many_arguments)]
+    fn gather(
+        &self,
+        cache: &IrradianceCache,
+        p: Vec3,
+        ng: Vec3,
+        frame: Frame,
+        wo_l: Vec3,
+        albedo: Vec3,
+        rng: &mut Pcg32,
+        rays: &mut u64,
+    ) -> Vec3 {
+        let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+        let Some(s) = (Lobes::Diffuse { albedo }).sample(wo_l, u) else {
+            return Vec3::ZERO;
+        };
+        let wi = frame.to_world(s.wi);
+        let ray = Ray::new(offset_origin(p, ng, wi), wi);
+        *rays += 1;
+        let Some(hit) = self.engine.intersect(&ray) else {
+            return Vec3::ZERO;
+        };
+        let Some(y) = SurfaceHit::new(self.scene, &self.poses, &ray, &hit) else {
+            return Vec3::ZERO;
+        };
+        let (frame_y, lobes) = y.lobes();
+        let wo_y = frame_y.to_local(y.wo);
+        let (diffuse, specular) = split(lobes);
+        let mut l = Vec3::ZERO;
+        let lit = diffuse.is_some() || specular.is_some_and(|s| !s.is_delta());
+        if lit && !self.lights.is_empty() {
+            let u = (rng.next_f64(), rng.next_f32(), rng.next_f32());
+            let [d, sp] = self.direct(y.p, y.ng, frame_y, wo_y, diffuse, specular, u, rays);
+            l += d + sp;
+        }
+        if let Some(Lobes::Diffuse { albedo }) = diffuse {
+            l += albedo * FRAC_1_PI * recorded(cache, &y, hit.object);
+        }
+        s.weight * l
+    }
+
     /// Direct light by one light sample, reflected by the diffuse lobe (with
     /// weight one) and by the glossy lobe (weighted against its own
     /// sampling).
@@ -468,6 +524,16 @@ impl Multipass<'_> {
             NONE
         }
     }
+}
+
+/// The records' irradiance at `surface`, a point of `object`.
+fn recorded(cache: &IrradianceCache, surface: &SurfaceHit, object: u32) -> Vec3 {
+    cache.irradiance(
+        object,
+        surface.front(),
+        surface.local,
+        surface.local_normal(),
+    )
 }
 
 /// The diffuse part (lit by light samples and the records) and the

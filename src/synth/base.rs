@@ -487,7 +487,7 @@ impl BaseCache {
             .get(k)
             .map(|e| e.view)
             .unwrap_or_default();
-        let (image, _) = bake.read_layers(k, &[])?;
+        let image = bake.read_range(k)?;
         let base = Arc::new(Base::new(scene, k, view, image)?);
         self.load_seconds += start.elapsed().as_secs_f64();
         self.loads += 1;

@@ -22,8 +22,8 @@ use anyhow::{Context, Result};
 use glam::Vec3;
 
 use crate::bake::manifest::RADIOSITY;
-use crate::radiosity::bake as radiosity_bake;
 use crate::radiosity::lookup::IrradianceCache;
+use crate::radiosity::store as radiosity_store;
 use crate::radiosity::temporal::TimeSeries;
 use crate::radiosity::Simplified;
 use crate::render::surface::DiffuseQuery;
@@ -41,7 +41,7 @@ impl Records {
     /// `scene`.
     pub fn load(dir: &Path, scene: &Scene) -> Result<Self> {
         let path = dir.join(RADIOSITY);
-        let (simplified, series, _) = radiosity_bake::load_for(&path, scene, None)
+        let (simplified, series, _) = radiosity_store::load_for(&path, scene, None)
             .with_context(|| format!("reading the radiosity records of {}", dir.display()))?;
         let caches = series.solutions.iter().map(|_| OnceLock::new()).collect();
         Ok(Self {

@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 use crate::accel::{self, InstancedEngine};
 use crate::alloc;
-use crate::bake::{Bake, IndirectSource};
+use crate::bake::Bake;
 use crate::camera::Camera;
 use crate::image::{RangeImage, RangeMeta, NO_HIT};
 use crate::scene::{Scene, ViewSpace};
@@ -296,6 +296,10 @@ pub struct Synthesizer<'a> {
     /// `Some(None)` where they cannot correct anything (see
     /// [`Synthesizer::records`]).
     records: Option<Option<Arc<Records>>>,
+    /// Whether nearest-first blending leaves out what cannot change a
+    /// pixel ([`WarpSettings::cull`]); always, but where a test shows that
+    /// leaving it out changes nothing.
+    cull: bool,
 }
 
 /// Memory kept for bases by default: eight 2,600² bases fit.
@@ -344,6 +348,7 @@ impl<'a> Synthesizer<'a> {
             buffers: kept.buffers,
             records: kept.records,
             spare: None,
+            cull: true,
         }
     }
 
@@ -571,6 +576,7 @@ impl<'a> Synthesizer<'a> {
             blend: opts.blend,
             alpha: matches!(opts.time_interp, TimeInterp::Linear | TimeInterp::Reshade),
             sky: !background,
+            cull: self.cull,
         };
         let poses_t = self.scene.at(t);
         let moves_of = |base: &Base| -> Vec<Option<Affine3A>> {
@@ -833,8 +839,8 @@ impl<'a> Synthesizer<'a> {
     /// none) or the scene is static (they never change).
     fn records(&mut self) -> Result<Option<Arc<Records>>> {
         if self.records.is_none() {
-            let wanted = self.bake.manifest.settings.indirect == IndirectSource::Radiosity
-                && !self.scene.is_static();
+            let wanted =
+                self.bake.manifest.settings.indirect.uses_records() && !self.scene.is_static();
             let records = if wanted {
                 Some(Arc::new(Records::load(&self.bake.dir, self.scene)?))
             } else {
@@ -1144,11 +1150,10 @@ pub fn check_bake(bake: &Bake) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
-    use std::sync::atomic::Ordering;
 
     use super::*;
     use crate::accel::Backend;
-    use crate::bake::{self, BaseProjection, Settings, Shard};
+    use crate::bake::{self, BaseProjection, IndirectSource, Settings, Shard};
     use crate::plan::{Plan, PlannedView};
 
     fn cornell_box() -> Scene {
@@ -1232,12 +1237,11 @@ mod tests {
                 ..Options::default()
             };
             let mut frame = |skip: bool| {
-                warp::tests::NO_CULLING.store(!skip, Ordering::Relaxed);
+                synth.cull = skip;
                 synth.frame(&camera, t, &opts).unwrap()
             };
             let (skipped, with) = frame(true);
             let (kept, without) = frame(false);
-            warp::tests::NO_CULLING.store(false, Ordering::Relaxed);
             let case = format!("{size}² at {at}, t = {t}, {time_interp}, {supersample}²");
             assert!(with.hidden > 0, "{case}: nothing was skipped");
             assert_eq!(without.hidden, 0, "{case}");

@@ -8,12 +8,12 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{ensure, Context, Result};
-use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{view_space_warning, FrameStats, Options, Synthesizer};
 use crate::camera::Camera;
 use crate::image::{self, RangeImage};
 use crate::output::{numbered, Contents, Folder};
+use crate::progress::{ProgressBar, ProgressStyle};
 
 /// What a walk writes and how.
 #[derive(Clone, Debug)]

@@ -247,13 +247,16 @@ pub struct WarpSettings {
     /// a box's edge), while one that holds part of a surface (a window
     /// bar) carries that surface's light into the sky.
     pub sky: bool,
+    /// Whether nearest-first blending leaves out the samples of later
+    /// passes that cannot change a pixel: only a saving, frames are bit for
+    /// bit the same without it.
+    pub cull: bool,
 }
 
 impl WarpSettings {
-    /// Whether later passes are left out where they cannot change a pixel
-    /// (nearest-first blending).
+    /// Whether later passes are left out where they cannot change a pixel.
     fn culls(&self) -> bool {
-        self.blend == Blend::Nearest && culling()
+        self.blend == Blend::Nearest && self.cull
     }
 }
 
@@ -1375,16 +1378,6 @@ fn hidden_sample(
 /// extent, and the rows and columns its deposits reach.
 type Footprint = (Vec2, Vec2, f32, Vec2, (i64, i64), (i64, i64));
 
-/// Whether nearest-first blending skips what cannot change the frame
-/// (off only to test that skipping changes nothing).
-fn culling() -> bool {
-    #[cfg(test)]
-    if tests::NO_CULLING.load(std::sync::atomic::Ordering::Relaxed) {
-        return false;
-    }
-    true
-}
-
 /// What a thread reuses from tile to tile and band to band.
 #[derive(Default)]
 struct Scratch {
@@ -1497,11 +1490,6 @@ impl Sample {
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
-
-    /// Turns off nearest-first blending's skipping of hidden samples, to
-    /// show that it changes nothing.
-    pub static NO_CULLING: std::sync::atomic::AtomicBool =
-        std::sync::atomic::AtomicBool::new(false);
 
     /// A floor seen at an angle, 3.3 to 4.2 units away, behind what an
     /// earlier base put at each pixel: its nearest point is nearer than

@@ -16,16 +16,20 @@ use std::path::{Path, PathBuf};
 use anyhow::{ensure, Result};
 use glam::Vec3;
 
-use super::experiment::{self, seconds_per_sample, ConvergencePoint, Target};
-use super::plot::{self, Plot, Scale, Series};
-use super::reference::Reference;
-use super::report::{sig, Table};
-use super::staging::Staging;
-use super::summary::{convergence_series, convergence_table};
-use super::synthesis::{
-    self, break_even, cell, equal_error_seconds, speedup, CommonArgs, Measure, Measured, ModeRun,
-    Reach, Sequence, SequenceArgs, SequenceQuality, Shot,
+use crate::eval::experiments::common::convergence::{
+    break_even, convergence, convergence_series, convergence_table, equal_error_seconds,
+    seconds_per_sample, speedup, ConvergencePoint, Measure, Reach, Target,
 };
+use crate::eval::experiments::common::plot::{self, Plot, Scale, Series};
+use crate::eval::experiments::common::sequence::{
+    differences, modes_list, notes_md, write_sequence, Measured, ModeRun, Sequence, SequenceQuality,
+};
+use crate::eval::experiments::common::setup::{engine, CommonArgs, SequenceArgs, Shot};
+use crate::eval::experiments::common::staging::Staging;
+use crate::eval::experiments::common::synthesize::mean_flip;
+use crate::eval::experiments::common::table::cell;
+use crate::eval::experiments::common::table::{sig, Table};
+use crate::eval::reference::Reference;
 use crate::plan::Plan;
 use crate::synth::{Options, TimeInterp};
 
@@ -142,7 +146,7 @@ pub fn run(args: &WalkthroughArgs) -> Result<WalkResults> {
     }
     let preview_frame = times.len() / 2;
     let staging = Staging::begin(&c.out)?;
-    let mut engine = synthesis::engine(scene, c.backend)?;
+    let mut engine = engine(scene, c.backend)?;
     let seq = Sequence {
         setup: &setup,
         common: c,
@@ -182,7 +186,7 @@ pub fn run(args: &WalkthroughArgs) -> Result<WalkResults> {
             .reduce(f64::min),
     };
     let shot = &shots[preview_frame];
-    let convergence = experiment::convergence(
+    let convergence = convergence(
         scene,
         engine.as_mut(),
         &shot.camera,
@@ -295,7 +299,7 @@ pub fn amortized(
 }
 
 fn paper(q: f32) -> Option<(f64, f64)> {
-    super::report::for_quality(&PAPER, q, |p| p.0).map(|p| (p.1, p.2))
+    crate::eval::experiments::common::table::for_quality(&PAPER, q, |p| p.0).map(|p| (p.1, p.2))
 }
 
 /// Writes table.md, qualities.csv, frames.csv, convergence.csv, plots
@@ -303,7 +307,7 @@ fn paper(q: f32) -> Option<(f64, f64)> {
 pub fn write(dir: &Path, r: &WalkResults) -> Result<()> {
     convergence_table(&r.convergence)?.write_csv(dir.join("convergence.csv"))?;
     error_vs_time_plots(dir, r)?;
-    synthesis::write_sequence(
+    write_sequence(
         dir,
         &markdown(r)?,
         &qualities_csv(r)?,
@@ -354,7 +358,7 @@ fn markdown(r: &WalkResults) -> Result<String> {
         <&str>::from(a.sequence.fill),
         a.bases
     );
-    md.push_str(&synthesis::differences(
+    md.push_str(&differences(
         c,
         r.base_size,
         &format!(
@@ -363,7 +367,7 @@ fn markdown(r: &WalkResults) -> Result<String> {
              compensated and re-shaded time interpolation (the paper: pinterp and pcomb)"
         ),
     ));
-    md.push_str(&synthesis::notes_md(&r.notes));
+    md.push_str(&notes_md(&r.notes));
 
     md.push_str("## Scene decomposition and base images\n\n");
     let mut t = Table::new([
@@ -439,7 +443,7 @@ fn markdown(r: &WalkResults) -> Result<String> {
                 cell(m.mean_lrms_without_emitters(), 3),
                 sig(m.mean_block_lrms(), 3),
                 sig(m.mean_block_p99(), 3),
-                cell(synthesis::mean_flip(&m.frames), 3),
+                cell(mean_flip(&m.frames), 3),
                 paper(q.quality)
                     .filter(|_| m.mode == TimeInterp::Linear)
                     .map_or("—".into(), |p| sig(p.1, 3)),
@@ -506,7 +510,7 @@ fn markdown(r: &WalkResults) -> Result<String> {
     let _ = writeln!(
         md,
         "\n`strip-q<q>.png`: frame {f}, the reference then {}.",
-        synthesis::modes_list(&a.sequence.time_interp)
+        modes_list(&a.sequence.time_interp)
     );
     Ok(md)
 }
@@ -566,7 +570,7 @@ fn qualities_csv(r: &WalkResults) -> Result<Table> {
                 opt(m.mean_lrms_without_emitters()),
                 m.mean_block_lrms().to_string(),
                 m.mean_block_p99().to_string(),
-                opt(synthesis::mean_flip(&m.frames)),
+                opt(mean_flip(&m.frames)),
             ];
             for measure in [Measure::Lrms, Measure::Flip] {
                 let am = amortized(q, m, &r.convergence, r.args.amortize_frames, measure);
@@ -637,8 +641,10 @@ fn error_vs_time_plots(dir: &Path, r: &WalkResults) -> Result<()> {
 mod tests {
     use super::*;
     use crate::accel::Backend;
+    use crate::eval::experiments::common::sequence::frames_csv;
+    use crate::eval::experiments::common::setup::{BakeCost, BakeTiming};
+    use crate::eval::experiments::common::synthesize::SynthFrame;
     use crate::eval::metrics::ImageError;
-    use crate::eval::synthesis::{BakeCost, BakeTiming, SynthFrame};
     use crate::plan::PlannedView;
     use crate::synth::{Blend, Fill};
 
@@ -820,7 +826,7 @@ mod tests {
             md.contains("fully rendered: path tracer at 256 spp | 51.2 |"),
             "{md}"
         );
-        let frames = synthesis::frames_csv(&r.qualities).unwrap();
+        let frames = frames_csv(&r.qualities).unwrap();
         assert_eq!(frames.rows.len(), 2);
         assert_eq!(qualities_csv(&r).unwrap().rows.len(), 1);
     }

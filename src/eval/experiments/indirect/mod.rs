@@ -10,6 +10,8 @@
 //! the sample count that costs what the radiosity method costs, which is the
 //! comparison that decides whether the method pays.
 
+pub mod report;
+
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -17,21 +19,20 @@ use std::time::Instant;
 use anyhow::{ensure, Context, Result};
 use glam::Vec3;
 
-use super::flip::Flip;
-use super::metrics::{self, ImageError, Pixels};
-use super::reference::{self, Reference};
-use super::staging::{Staging, REFERENCE_DIR};
-use super::summary;
 use crate::accel::{self, Backend, InstancedEngine};
 use crate::camera::Camera;
+use crate::eval::experiments::common::convergence::{
+    convergence, seconds_per_sample, ConvergencePoint, Target, TEST_SEED,
+};
+use crate::eval::experiments::common::staging::{Staging, REFERENCE_DIR};
+use crate::eval::experiments::common::synthesize::flip_means;
+use crate::eval::flip::Flip;
+use crate::eval::metrics::{self, ImageError, Pixels};
+use crate::eval::reference::{self, Reference};
 use crate::radiosity::lookup::IrradianceCache;
 use crate::radiosity::{self, temporal, Quality, SimplifyStats, SolveStats};
 use crate::render::{multipass, RenderSettings};
 use crate::scene::Scene;
-
-/// Seed of the renders compared with references (see
-/// [`reference::REFERENCE_SEED`]).
-const TEST_SEED: u64 = 1;
 
 /// What `rangewalk experiment indirect` takes.
 #[derive(Clone, Debug)]
@@ -132,16 +133,6 @@ impl PathTracerRun {
     pub fn total_s(&self) -> f64 {
         self.frames.iter().map(|f| f.render_s).sum()
     }
-}
-
-/// The path tracer's error at one sample count, on the preview frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ConvergencePoint {
-    pub spp: u32,
-    pub seconds: f64,
-    pub error: ImageError,
-    /// Mean HDR-FLIP; `None` when FLIP is left out.
-    pub flip: Option<f64>,
 }
 
 /// The whole experiment's measurements.
@@ -291,7 +282,7 @@ pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
         notes,
         out: args.out.clone(),
     };
-    summary::write(staging.dir(), &results)?;
+    report::write(staging.dir(), &results)?;
     results.out = staging.finish()?;
     Ok(results)
 }
@@ -306,29 +297,7 @@ pub fn frame_times(scene: &Scene, frames: Option<u32>) -> Vec<f32> {
             ((a.end - a.start) * a.fps).round().max(1.0) as u32
         }
     });
-    super::synthesis::spread(a.start, a.end, n)
-}
-
-/// FLIP of each image against its reference (all of `camera`'s size), in
-/// one batch; `None` for each when FLIP is left out.
-pub(crate) fn flip_means(
-    flip: Option<&Flip>,
-    camera: &Camera,
-    refs: &[&[Vec3]],
-    images: &[Vec<Vec3>],
-) -> Result<Vec<Option<f64>>> {
-    let Some(f) = flip else {
-        return Ok(vec![None; images.len()]);
-    };
-    let pairs: Vec<(&[Vec3], &[Vec3])> = refs
-        .iter()
-        .zip(images)
-        .map(|(r, t)| (*r, t.as_slice()))
-        .collect();
-    Ok(f.hdr_means(camera.width, camera.height, &pairs)?
-        .into_iter()
-        .map(Some)
-        .collect())
+    super::common::setup::spread(a.start, a.end, n)
 }
 
 /// What every per-frame loop needs.
@@ -474,77 +443,6 @@ fn path_tracer_run(
     })
 }
 
-/// Where the path tracer's convergence curve may stop: at `max_spp`, or
-/// past the largest cost per frame and below the smallest error of the
-/// qualities measured, in LRMS and in FLIP, so that the plot shows where
-/// (and whether) it crosses them and their sample counts at equal error
-/// are read off measured points.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Target {
-    pub max_spp: u32,
-    pub seconds: f64,
-    pub lrms: f64,
-    /// `None` when FLIP is left out.
-    pub flip: Option<f64>,
-}
-
-impl Target {
-    /// Whether the curve ends at `point`.
-    fn reached(&self, point: &ConvergencePoint) -> bool {
-        let below_flip = match (point.flip, self.flip) {
-            (Some(f), Some(target)) => f < target,
-            _ => true,
-        };
-        point.spp >= self.max_spp
-            || (point.seconds > 2.0 * self.seconds && point.error.lrms < self.lrms && below_flip)
-    }
-}
-
-/// The path tracer's error on one frame at 1, 2, 4, ... samples per pixel,
-/// until it reaches `target`'s sample count or has passed it in time
-/// (twice over) and in error; FLIP of every point unless `flip` is `None`.
-pub(crate) fn convergence(
-    scene: &Scene,
-    engine: &mut dyn InstancedEngine,
-    camera: &Camera,
-    t: f32,
-    reference: &[Vec3],
-    target: Target,
-    flip: Option<&Flip>,
-) -> Result<Vec<ConvergencePoint>> {
-    let mut points = Vec::new();
-    let mut spp = 1;
-    loop {
-        let (radiance, seconds) = reference::path_trace(scene, engine, camera, t, spp, TEST_SEED)?;
-        let error = metrics::compare(
-            Pixels::of(camera, &radiance),
-            Pixels::of(camera, reference),
-            None,
-        )
-        .with_context(|| format!("path tracer convergence at {spp} spp"))?;
-        let flip = flip
-            .map(|f| f.hdr_mean(camera.width, camera.height, reference, &radiance))
-            .transpose()
-            .with_context(|| format!("FLIP of the path tracer at {spp} spp"))?;
-        eprintln!(
-            "path tracer convergence: {spp} spp: LRMS {:.4}{} ({seconds:.3} s)",
-            error.lrms,
-            flip.map_or(String::new(), |f| format!(", FLIP {f:.4}"))
-        );
-        let point = ConvergencePoint {
-            spp,
-            seconds,
-            error,
-            flip,
-        };
-        points.push(point);
-        if target.reached(&point) {
-            return Ok(points);
-        }
-        spp = (spp * 2).min(target.max_spp);
-    }
-}
-
 /// Samples per pixel that take `budget` seconds, from the cost per sample
 /// of the largest measured render (small ones are dominated by fixed
 /// costs); at least 1 and at most `max_spp` (`true` when capped there).
@@ -562,13 +460,6 @@ fn equal_time_spp(curve: &[ConvergencePoint], budget: f64, max_spp: u32) -> (u32
     } else {
         (spp.max(1.0) as u32, false)
     }
-}
-
-/// The path tracer's cost of one sample per pixel of a frame, from the
-/// largest measured render (small ones are dominated by fixed costs).
-pub(crate) fn seconds_per_sample(curve: &[ConvergencePoint]) -> Option<f64> {
-    let last = curve.iter().max_by_key(|p| p.spp)?;
-    Some(last.seconds / last.spp as f64)
 }
 
 #[cfg(test)]
@@ -596,32 +487,6 @@ mod tests {
         assert_eq!(equal_time_spp(&curve, 2.0, 64), (10, false));
         assert_eq!(equal_time_spp(&curve, 0.01, 64), (1, false));
         assert_eq!(equal_time_spp(&curve, 100.0, 64), (64, true));
-    }
-
-    #[test]
-    fn the_curve_runs_until_it_passes_the_target_in_time_lrms_and_flip() {
-        let target = Target {
-            max_spp: 64,
-            seconds: 0.5,
-            lrms: 0.3,
-            flip: Some(0.1),
-        };
-        // 16 spp: 1.6 s (past twice 0.5 s), LRMS 0.25 below 0.3.
-        let mut p = point(16, 1.6);
-        p.flip = Some(0.2);
-        assert!(!target.reached(&p), "FLIP 0.2 is above the target's 0.1");
-        p.flip = Some(0.05);
-        assert!(target.reached(&p));
-        // Not yet past the time, or not below the LRMS.
-        assert!(!target.reached(&point(16, 0.9)));
-        assert!(!target.reached(&point(4, 1.6)));
-        // Without FLIP, time and LRMS decide; the sample cap always ends it.
-        let no_flip = Target {
-            flip: None,
-            ..target
-        };
-        assert!(no_flip.reached(&point(16, 1.6)));
-        assert!(target.reached(&point(64, 0.01)));
     }
 
     #[test]

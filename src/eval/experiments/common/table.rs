@@ -106,6 +106,45 @@ pub fn sig(x: f64, digits: usize) -> String {
     format!("{x:.decimals$}")
 }
 
+/// The mean of `xs`; NaN when there are none.
+pub fn mean(xs: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = xs.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    if n == 0 {
+        f64::NAN
+    } else {
+        s / n as f64
+    }
+}
+
+/// A short list of times: all of them when few, else the ends and count.
+pub fn times_list(times: &[f32]) -> String {
+    let all: Vec<String> = times
+        .iter()
+        .map(|t| {
+            format!("{t:.4}")
+                .trim_end_matches('0')
+                .trim_end_matches('.')
+                .to_string()
+        })
+        .collect();
+    if all.len() <= 6 {
+        all.join(", ")
+    } else {
+        format!(
+            "{}, {}, ..., {} ({} times)",
+            all[0],
+            all[1],
+            all[all.len() - 1],
+            all.len()
+        )
+    }
+}
+
+/// A number for a table, or a dash where there is none.
+pub fn cell(x: Option<f64>, digits: usize) -> String {
+    x.map_or("—".to_string(), |x| sig(x, digits))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

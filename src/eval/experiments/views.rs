@@ -16,16 +16,19 @@ use std::path::{Path, PathBuf};
 use anyhow::{ensure, Context, Result};
 use glam::Vec3;
 
-use super::metrics::ImageError;
-use super::plot::{self, Plot, Scale, Series};
-use super::reference::Reference;
-use super::report::{sig, Table};
-use super::staging::{Staging, BAKES_DIR, REFERENCE_DIR};
-use super::summary::{exposure_for, write_strip};
-use super::synthesis::{
-    self, bake_cached, cell, plan_timed, references_of, BakeCost, BakeTiming, CommonArgs, Shot,
-    SynthFrame, Truth,
+use crate::eval::experiments::common::plot::{self, Plot, Scale, Series};
+use crate::eval::experiments::common::sequence::{differences, notes_md};
+use crate::eval::experiments::common::setup::{
+    bake_cached, engine, plan_timed, quality_dir, references_of, BakeCost, BakeTiming, CommonArgs,
+    Shot,
 };
+use crate::eval::experiments::common::staging::{Staging, BAKES_DIR, REFERENCE_DIR};
+use crate::eval::experiments::common::synthesize::{emitter_free, synthesize, SynthFrame, Truth};
+use crate::eval::experiments::common::table::cell;
+use crate::eval::experiments::common::table::{sig, Table};
+use crate::eval::metrics::ImageError;
+use crate::eval::reference::Reference;
+use crate::eval::sheet::{exposure_for, write_strip};
 use crate::plan::{Plan, PlannedView};
 use crate::radiosity::lookup::IrradianceCache;
 use crate::render::{multipass, RenderSettings};
@@ -184,7 +187,7 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
     let staging = Staging::begin(&c.out)?;
     let bakes = staging.dir().join(BAKES_DIR);
     let refs_dir = staging.dir().join(REFERENCE_DIR);
-    let mut engine = synthesis::engine(&scene, c.backend)?;
+    let mut engine = engine(&scene, c.backend)?;
     let mut runs = Vec::new();
     for &q in &setup.qualities {
         let tag = format!("q = {}", q.get());
@@ -217,7 +220,7 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
             ..plan.clone()
         };
         let mut bake = |prefix: &str, plan: &Plan| {
-            let dir = bakes.join(synthesis::quality_dir(prefix, q));
+            let dir = bakes.join(quality_dir(prefix, q));
             bake_cached(&scene, &dir, &settings, plan, engine.as_mut())
         };
         let pair = bake("", &pair_plan)?;
@@ -243,7 +246,7 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
             &refs_dir,
         )?
         .remove(0);
-        let mask = synthesis::emitter_free(&scene, engine.as_mut(), &shot.camera, time)?;
+        let mask = emitter_free(&scene, engine.as_mut(), &shot.camera, time)?;
         let truth = Truth {
             radiance: &reference.radiance,
             size: (shot.camera.width, shot.camera.height),
@@ -261,7 +264,7 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
                         blend: c.blend,
                         ..Options::default()
                     };
-                    let mut r = synthesis::synthesize(
+                    let mut r = synthesize(
                         &scene,
                         bake,
                         std::slice::from_ref(&shot),
@@ -307,7 +310,7 @@ pub fn run(args: &ViewsArgs) -> Result<ViewsResults> {
         });
     }
     let references: Vec<Reference> = runs.iter().map(|r| r.reference.clone()).collect();
-    notes.extend(super::reference::reuse_note(&references));
+    notes.extend(crate::eval::reference::reuse_note(&references));
     if runs
         .iter()
         .any(|r| r.bake.reused || r.resampled_bake.reused)
@@ -340,10 +343,10 @@ fn render_direct(
     shot: &Shot,
     spp: u32,
     truth: &Truth,
-    flip: Option<&super::flip::Flip>,
+    flip: Option<&crate::eval::flip::Flip>,
 ) -> Result<DirectRun> {
     let (simplified, series) =
-        crate::radiosity::bake::load(&bake.dir.join(crate::bake::manifest::RADIOSITY))?;
+        crate::radiosity::store::load(&bake.dir.join(crate::bake::manifest::RADIOSITY))?;
     let cache = IrradianceCache::new(&simplified, &series.indirect_at(shot.time))?;
     engine.set_transforms(&scene.at(shot.time))?;
     let settings = RenderSettings {
@@ -422,7 +425,7 @@ pub fn flanking(along: &[f32], at: Option<f32>) -> Option<(usize, usize, f32)> {
 }
 
 fn paper(q: f32) -> Option<f64> {
-    super::report::for_quality(&PAPER, q, |p| p.0).map(|p| p.1)
+    crate::eval::experiments::common::table::for_quality(&PAPER, q, |p| p.0).map(|p| p.1)
 }
 
 /// Writes table.md, qualities.csv, the plot and the image strips.
@@ -483,14 +486,14 @@ fn markdown(r: &ViewsResults) -> Result<String> {
         c.size.0,
         c.size.1
     );
-    md.push_str(&synthesis::differences(
+    md.push_str(&differences(
         c,
         r.base_size,
         "synthesis by this project's reprojection (pinterp's z-buffer, tolerance and fills), \
          samples averaged by ray angle, from the two bases flanking the target (the paper: pinterp, \
          180° bases)",
     ));
-    md.push_str(&synthesis::notes_md(&r.notes));
+    md.push_str(&notes_md(&r.notes));
 
     md.push_str("## Scene decomposition\n\n");
     let mut t = Table::new([
@@ -503,7 +506,8 @@ fn markdown(r: &ViewsResults) -> Result<String> {
     ]);
     let paper_plan = [(0.3, 2, 10.77), (0.6, 3, 34.12), (0.9, 5, 116.05)];
     for q in &r.qualities {
-        let p = super::report::for_quality(&paper_plan, q.quality, |p| p.0);
+        let p =
+            crate::eval::experiments::common::table::for_quality(&paper_plan, q.quality, |p| p.0);
         t.push([
             q.quality.to_string(),
             q.plan.views.len().to_string(),

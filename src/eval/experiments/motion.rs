@@ -13,11 +13,16 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 
-use super::plot::{self, Plot, Scale, Series};
-use super::reference::Reference;
-use super::report::{sig, Table};
-use super::staging::Staging;
-use super::synthesis::{self, cell, CommonArgs, Sequence, SequenceArgs, SequenceQuality, Shot};
+use crate::eval::experiments::common::plot::{self, Plot, Scale, Series};
+use crate::eval::experiments::common::sequence::{
+    differences, modes_list, notes_md, write_sequence, Sequence, SequenceQuality,
+};
+use crate::eval::experiments::common::setup::{engine, CommonArgs, SequenceArgs, Shot};
+use crate::eval::experiments::common::staging::Staging;
+use crate::eval::experiments::common::synthesize::mean_flip;
+use crate::eval::experiments::common::table::cell;
+use crate::eval::experiments::common::table::{sig, Table};
+use crate::eval::reference::Reference;
 use crate::plan::Plan;
 use crate::synth::{Options, TimeInterp};
 
@@ -100,7 +105,7 @@ pub fn run(args: &MotionArgs) -> Result<MotionResults> {
         })
         .collect();
     let staging = Staging::begin(&c.out)?;
-    let mut engine = synthesis::engine(&scene, c.backend)?;
+    let mut engine = engine(&scene, c.backend)?;
     let seq = Sequence {
         setup: &setup,
         common: c,
@@ -134,13 +139,13 @@ pub fn run(args: &MotionArgs) -> Result<MotionResults> {
 }
 
 fn paper(q: f32) -> Option<&'static (f32, usize, &'static str, f64, f64)> {
-    super::report::for_quality(&PAPER, q, |p| p.0)
+    crate::eval::experiments::common::table::for_quality(&PAPER, q, |p| p.0)
 }
 
 /// Writes table.md, qualities.csv, frames.csv, plots and strips.
 pub fn write(dir: &Path, r: &MotionResults) -> Result<()> {
     error_vs_time_plot(dir, r)?;
-    synthesis::write_sequence(
+    write_sequence(
         dir,
         &markdown(r)?,
         &qualities_csv(r)?,
@@ -158,7 +163,7 @@ fn time_list(q: &SequenceQuality, fps: f32) -> (String, String) {
         .iter()
         .map(|t| format!("{}", (t * fps).round()))
         .collect();
-    (super::summary::times_list(times), f.join(", "))
+    (super::common::table::times_list(times), f.join(", "))
 }
 
 fn markdown(r: &MotionResults) -> Result<String> {
@@ -181,14 +186,14 @@ fn markdown(r: &MotionResults) -> Result<String> {
         fps,
         <&str>::from(r.args.sequence.fill)
     );
-    md.push_str(&synthesis::differences(
+    md.push_str(&differences(
         c,
         r.base_size,
         "time interpolation: linear per pixel between the two base times bracketing the frame \
          (the paper's `pcomb`), motion compensated (each sample moved by its object's rigid motion), \
          and re-shaded (motion compensated, diffuse direct light traced again at the frame's time)",
     ));
-    md.push_str(&synthesis::notes_md(&r.notes));
+    md.push_str(&notes_md(&r.notes));
 
     md.push_str("## Scene decomposition\n\n");
     let mut t = Table::new([
@@ -295,7 +300,7 @@ fn markdown(r: &MotionResults) -> Result<String> {
                 cell(m.mean_lrms_without_emitters(), 3),
                 sig(m.mean_block_lrms(), 3),
                 sig(m.mean_block_p99(), 3),
-                cell(synthesis::mean_flip(&m.frames), 3),
+                cell(mean_flip(&m.frames), 3),
                 p.map_or("—".into(), |p| sig(p.3, 4)),
                 p.map_or("—".into(), |p| format!("{:.3}", p.4)),
             ])?;
@@ -309,7 +314,7 @@ fn markdown(r: &MotionResults) -> Result<String> {
          bases, which is under loading. `strip-q<q>.png`: frame {} (t = {} s), the reference then {}.",
         r.preview_frame,
         r.times[r.preview_frame],
-        synthesis::modes_list(&r.args.sequence.time_interp)
+        modes_list(&r.args.sequence.time_interp)
     );
     Ok(md)
 }
@@ -361,7 +366,7 @@ fn qualities_csv(r: &MotionResults) -> Result<Table> {
                 opt(m.mean_lrms_without_emitters()),
                 m.mean_block_lrms().to_string(),
                 m.mean_block_p99().to_string(),
-                opt(synthesis::mean_flip(&m.frames)),
+                opt(mean_flip(&m.frames)),
             ])?;
         }
     }

@@ -8,13 +8,13 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use glam::Vec3;
 
-use super::experiment::{
-    ConvergencePoint, FrameResult, IndirectResults, PathTracerRun, QualityRun,
-};
-use super::metrics::luminance;
-use super::plot::{self, Plot, Scale, Series};
-use super::report::{sig, Table};
-use super::synthesis::Measure;
+use super::{FrameResult, IndirectResults, PathTracerRun, QualityRun};
+use crate::eval::experiments::common::convergence::Measure;
+use crate::eval::experiments::common::convergence::{convergence_series, convergence_table};
+use crate::eval::experiments::common::plot::{self, Plot, Scale, Series};
+use crate::eval::experiments::common::table::{mean, times_list};
+use crate::eval::experiments::common::table::{sig, Table};
+use crate::eval::sheet::exposure_for;
 use crate::image;
 
 /// The paper's relative LRMS of its wavelet-radiosity (WR) images at
@@ -28,7 +28,7 @@ const PAPER: [(f32, f64, f64); 3] = [
 ];
 
 fn paper(q: f32) -> Option<(f64, f64)> {
-    super::report::for_quality(&PAPER, q, |p| p.0).map(|p| (p.1, p.2))
+    crate::eval::experiments::common::table::for_quality(&PAPER, q, |p| p.0).map(|p| (p.1, p.2))
 }
 
 /// Writes every output file of `r` into `dir`.
@@ -40,16 +40,6 @@ pub fn write(dir: &Path, r: &IndirectResults) -> Result<()> {
     convergence_csv(r)?.write_csv(dir.join("convergence.csv"))?;
     plots(dir, r)?;
     previews(dir, r)
-}
-
-/// The mean of `xs`; NaN when there are none.
-pub fn mean(xs: impl Iterator<Item = f64>) -> f64 {
-    let (s, n) = xs.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
-    if n == 0 {
-        f64::NAN
-    } else {
-        s / n as f64
-    }
 }
 
 fn max(xs: impl Iterator<Item = f64>) -> f64 {
@@ -106,7 +96,7 @@ fn markdown(r: &IndirectResults) -> Result<String> {
         a.reference_spp,
         rayon::current_num_threads()
     );
-    md.push_str(super::synthesis::ERRORS_MD);
+    md.push_str(crate::eval::experiments::common::sequence::ERRORS_MD);
     if !r.notes.is_empty() {
         md.push_str("Stages left out and notes:\n\n");
         for note in &r.notes {
@@ -244,30 +234,6 @@ fn table2_row(q: &QualityRun) -> Vec<String> {
     row
 }
 
-/// A short list of times: all of them when few, else the ends and count.
-pub fn times_list(times: &[f32]) -> String {
-    let all: Vec<String> = times
-        .iter()
-        .map(|t| {
-            format!("{t:.4}")
-                .trim_end_matches('0')
-                .trim_end_matches('.')
-                .to_string()
-        })
-        .collect();
-    if all.len() <= 6 {
-        all.join(", ")
-    } else {
-        format!(
-            "{}, {}, ..., {} ({} times)",
-            all[0],
-            all[1],
-            all[all.len() - 1],
-            all.len()
-        )
-    }
-}
-
 fn frames_csv(r: &IndirectResults) -> Result<Table> {
     let mut t = Table::new([
         "method",
@@ -316,32 +282,6 @@ fn convergence_csv(r: &IndirectResults) -> Result<Table> {
     convergence_table(&r.convergence)
 }
 
-/// The path tracer's convergence curve: samples per pixel, seconds, LRMS,
-/// bias, block LRMS, block p99 and FLIP (empty where left out).
-pub fn convergence_table(curve: &[ConvergencePoint]) -> Result<Table> {
-    let mut t = Table::new([
-        "spp",
-        "seconds",
-        "lrms",
-        "bias",
-        "block_lrms",
-        "block_p99",
-        "flip",
-    ]);
-    for p in curve {
-        t.push([
-            p.spp.to_string(),
-            sig(p.seconds, 4),
-            sig(p.error.lrms, 4),
-            format!("{:+.5}", p.error.bias),
-            sig(p.error.block_lrms, 4),
-            sig(p.error.block_p99, 4),
-            p.flip.map_or(String::new(), |f| sig(f, 4)),
-        ])?;
-    }
-    Ok(t)
-}
-
 fn plots(dir: &Path, r: &IndirectResults) -> Result<()> {
     let per_frame = |label: String, frames: &[FrameResult]| Series {
         label,
@@ -388,18 +328,6 @@ fn plots(dir: &Path, r: &IndirectResults) -> Result<()> {
     )
 }
 
-/// The path tracer's convergence curve as a plot series: its error in
-/// `measure` against seconds per frame, where measured.
-pub fn convergence_series(curve: &[ConvergencePoint], measure: Measure) -> Series {
-    Series {
-        label: format!("path tracer, 1..{} spp", curve.last().map_or(0, |p| p.spp)),
-        points: curve
-            .iter()
-            .filter_map(|p| Some((p.seconds, measure.of(p)?)))
-            .collect(),
-    }
-}
-
 /// PNG previews of one frame, all at the exposure that puts the reference's
 /// mean luminance at middle grey, so they compare directly.
 fn previews(dir: &Path, r: &IndirectResults) -> Result<()> {
@@ -417,86 +345,4 @@ fn previews(dir: &Path, r: &IndirectResults) -> Result<()> {
         write(format!("preview-path-tracer-{}spp.png", p.spp), &p.preview)?;
     }
     Ok(())
-}
-
-/// The exposure (stops) that puts `reference`'s mean luminance at middle
-/// grey: images shown at it beside the reference compare directly.
-pub fn exposure_for(reference: &[Vec3]) -> f32 {
-    let y = reference.iter().map(|&c| luminance(c)).sum::<f64>() / reference.len().max(1) as f64;
-    if y > 0.0 {
-        (0.18 / y).log2().clamp(-60.0, 60.0) as f32
-    } else {
-        0.0
-    }
-}
-
-/// Gap between the images of a strip, in pixels (white).
-const STRIP_GAP: u32 = 4;
-
-/// The images (each `w x h` linear radiance) side by side in one PNG, left
-/// to right, tone-mapped at one `exposure`.
-pub fn write_strip(
-    path: impl AsRef<Path>,
-    size: (u32, u32),
-    images: &[&[Vec3]],
-    exposure: f32,
-) -> Result<()> {
-    write_sheet(path, size, &[images.to_vec()], exposure)
-}
-
-/// Rows of images (each `w x h` linear radiance) in one PNG, tone-mapped at
-/// one `exposure`; a row shorter than the longest is left white at its end.
-pub fn write_sheet(
-    path: impl AsRef<Path>,
-    size: (u32, u32),
-    rows: &[Vec<&[Vec3]>],
-    exposure: f32,
-) -> Result<()> {
-    let tiles: Vec<Vec<Vec<u8>>> = rows
-        .iter()
-        .map(|row| {
-            row.iter()
-                .map(|img| image::tonemap_srgb8(img, exposure))
-                .collect()
-        })
-        .collect();
-    write_sheet_srgb8(path, size, &tiles)
-}
-
-/// Rows of 8-bit sRGB tiles (each `w x h`, `RGBRGB...`) in one PNG, with
-/// white gaps between them; a row shorter than the longest is left white
-/// at its end.
-pub fn write_sheet_srgb8(
-    path: impl AsRef<Path>,
-    (w, h): (u32, u32),
-    rows: &[Vec<Vec<u8>>],
-) -> Result<()> {
-    let path = path.as_ref();
-    let gaps = |n: u32| n.saturating_sub(1) * STRIP_GAP;
-    let columns = rows.iter().map(Vec::len).max().unwrap_or(0) as u32;
-    let (width, height) = (
-        columns * w + gaps(columns),
-        rows.len() as u32 * h + gaps(rows.len() as u32),
-    );
-    let mut rgb = vec![255u8; (width * height * 3) as usize];
-    let line = (w * 3) as usize;
-    for (r, row) in rows.iter().enumerate() {
-        let y0 = r as u32 * (h + STRIP_GAP);
-        for (i, tile) in row.iter().enumerate() {
-            anyhow::ensure!(
-                tile.len() == line * h as usize,
-                "writing {}: a tile of {} bytes is not {w}x{h} RGB",
-                path.display(),
-                tile.len()
-            );
-            let x0 = i as u32 * (w + STRIP_GAP);
-            for y in 0..h {
-                let from = y as usize * line;
-                let to = (((y0 + y) * width + x0) * 3) as usize;
-                rgb[to..to + line].copy_from_slice(&tile[from..from + line]);
-            }
-        }
-    }
-    image::png_io::write(path, width, height, &rgb)
-        .with_context(|| format!("writing {}", path.display()))
 }

@@ -171,7 +171,7 @@ fn log_label(v: &f64) -> String {
         .iter()
         .any(|m| (mantissa - m).abs() < 1e-6)
     {
-        super::report::sig(*v, 1)
+        super::table::sig(*v, 1)
     } else {
         String::new()
     }

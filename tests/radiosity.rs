@@ -647,11 +647,10 @@ fn a_ceiling_lit_from_outside_keeps_its_inside_dark_only_where_it_is() {
 /// contact line, and they come out up to 17% low (47% where the short box
 /// reaches the open front); docs/radiosity.md tells why.
 ///
-/// The tall box's front face a fifth of its height above the floor is held
-/// to the goal at q = 0.9 only: at q = 0.6 it comes out 10-12% low (the
-/// goal of issue 9 not yet met there; −11.6% at t = 0.5 with Embree, −10.3%
-/// with the BVH, whose grazing rays at the contact line differ), at q = 0.9
-/// 5-6% low. It is printed at q = 0.6, so the miss stays in sight.
+/// The tall box's front face a fifth of its height above the floor (a
+/// near-base point, printed as such) is held to the goal at both
+/// qualities: within a few centimetres of the contact line its leaves
+/// average a steep fall of light, and it is the point most likely to miss.
 ///
 /// This check once had to leave the tall box out: the simplification left
 /// the ray engine posed at a random time of the animation, and the solve
@@ -668,7 +667,7 @@ fn cornell_records_agree_with_monte_carlo_with_every_occluder() {
     #[derive(Clone, Copy, PartialEq)]
     enum Place {
         Open,
-        /// Low on a box face: held to the goal from q = 0.9.
+        /// Low on a box face: held to the goal, printed apart.
         NearBase,
         /// Printed, never held to the goal.
         Contact,
@@ -781,7 +780,7 @@ fn cornell_records_agree_with_monte_carlo_with_every_occluder() {
                     },
                     hr / mc - 1.0
                 );
-                let held = place == Open || place == NearBase && q >= 0.9;
+                let held = place != Contact;
                 if held && (hr - mc).abs() > tol {
                     failures.push(format!(
                         "q = {q}, t = {t}, {} at {x}: radiosity {hr} vs Monte Carlo {mc} ± {sigma}",

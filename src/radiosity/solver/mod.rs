@@ -256,9 +256,22 @@ pub fn solve_posing(
                 .check(params.oracle_tolerance)
                 .with_context(|| format!("at t = {time}"))?;
             let indirect = op.apply(&solved.x);
+            let (open, probes) = links::open_shares(
+                &h,
+                &op.leaves,
+                &|p| simplified.patches[p as usize].object,
+                engine,
+            );
+            stats.shadow_rays += probes;
             let index = leaf_index(&h, &op.leaves);
-            let (ind, dir) =
-                output::records(simplified, &h, |l| index[l as usize], &indirect, &direct);
+            let (ind, dir) = output::records(
+                simplified,
+                &h,
+                |l| index[l as usize],
+                &indirect,
+                &direct,
+                &open,
+            );
             stats.elements = op.leaves.len();
             stats.links = op.links().len();
             stats.seconds = start.elapsed().as_secs_f64();

@@ -647,11 +647,10 @@ fn a_ceiling_lit_from_outside_keeps_its_inside_dark_only_where_it_is() {
 /// contact line, and they come out up to 17% low (47% where the short box
 /// reaches the open front); docs/radiosity.md tells why.
 ///
-/// The tall box's front face a fifth of its height above the floor is held
-/// to the goal at q = 0.9 only: at q = 0.6 it comes out 10-12% low (the
-/// goal of issue 9 not yet met there; −11.6% at t = 0.5 with Embree, −10.3%
-/// with the BVH, whose grazing rays at the contact line differ), at q = 0.9
-/// 5-6% low. It is printed at q = 0.6, so the miss stays in sight.
+/// The tall box's front face a fifth of its height above the floor (a
+/// near-base point, printed as such) is held to the goal at both
+/// qualities: within a few centimetres of the contact line its leaves
+/// average a steep fall of light, and it is the point most likely to miss.
 ///
 /// This check once had to leave the tall box out: the simplification left
 /// the ray engine posed at a random time of the animation, and the solve
@@ -668,7 +667,7 @@ fn cornell_records_agree_with_monte_carlo_with_every_occluder() {
     #[derive(Clone, Copy, PartialEq)]
     enum Place {
         Open,
-        /// Low on a box face: held to the goal from q = 0.9.
+        /// Low on a box face: held to the goal, printed apart.
         NearBase,
         /// Printed, never held to the goal.
         Contact,
@@ -781,7 +780,7 @@ fn cornell_records_agree_with_monte_carlo_with_every_occluder() {
                     },
                     hr / mc - 1.0
                 );
-                let held = place == Open || place == NearBase && q >= 0.9;
+                let held = place != Contact;
                 if held && (hr - mc).abs() > tol {
                     failures.push(format!(
                         "q = {q}, t = {t}, {} at {x}: radiosity {hr} vs Monte Carlo {mc} ± {sigma}",
@@ -1050,4 +1049,98 @@ fn stiff_cornell_box_converges() {
         mean(&b),
         mean(&a)
     );
+}
+
+/// `nu × nv` quads over the parallelogram from `o` along `u` and `v`, as
+/// two triangles each (OBJ faces numbered from `first`).
+fn grid_obj(o: Vec3, u: Vec3, v: Vec3, nu: usize, nv: usize, first: &mut usize) -> String {
+    let mut obj = String::new();
+    for i in 0..nu {
+        for j in 0..nv {
+            let at =
+                |a: usize, b: usize| o + u * (a as f32 / nu as f32) + v * (b as f32 / nv as f32);
+            for p in [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)] {
+                obj.push_str(&format!("v {} {} {}\n", p.x, p.y, p.z));
+            }
+            let n = *first;
+            obj.push_str(&format!(
+                "f {} {} {}\nf {} {} {}\n",
+                n + 1,
+                n + 2,
+                n + 3,
+                n + 1,
+                n + 3,
+                n + 4
+            ));
+            *first += 4;
+        }
+    }
+    obj
+}
+
+/// A furnace the shape of a room: 6 × 3 × 4 m, tessellated at 0.5 m, so
+/// that the solver clusters its patches and links clusters far apart (the
+/// unit cube's twelve triangles are all close to one another and every link
+/// ends on a surface). Every face reflects `rho` and emits on both sides.
+fn furnace_room(dir: &Path, rho: f32) -> Scene {
+    let (x, y, z) = (6.0, 3.0, 4.0);
+    let (ex, ey, ez) = (Vec3::X * x, Vec3::Y * y, Vec3::Z * z);
+    let mut n = 0;
+    let obj = [
+        grid_obj(Vec3::ZERO, ez, ex, 8, 12, &mut n),
+        grid_obj(ey, ex, ez, 12, 8, &mut n),
+        grid_obj(Vec3::ZERO, ex, ey, 12, 6, &mut n),
+        grid_obj(ez, ey, ex, 6, 12, &mut n),
+        grid_obj(Vec3::ZERO, ey, ez, 6, 8, &mut n),
+        grid_obj(ex, ez, ey, 8, 6, &mut n),
+    ]
+    .concat();
+    std::fs::write(dir.join("room.obj"), obj).unwrap();
+    let toml = format!(
+        "[[materials]]\nname = \"wall\"\ntype = \"diffuse\"\nreflectance = [{rho}, {rho}, {rho}]\n\
+         emission = [1, 1, 1]\ntwo_sided_emission = true\n\n\
+         [[objects]]\nname = \"room\"\nmesh = \"room.obj\"\nmaterial = \"wall\"\n"
+    );
+    std::fs::write(dir.join("scene.toml"), toml).unwrap();
+    load(&dir.join("scene.toml"))
+}
+
+/// Links with a cluster end once carried the point kernel between the
+/// ends' centres, which errs one way for ends as large as their distance:
+/// every surface of this room gathered about 3% too much, and its records
+/// came out 7% (ρ = 0.5) to 16% (ρ = 0.85) bright at q = 0.3. The closed
+/// form is exact, so the bound is the goal alone: issue 47's 2% on the
+/// mean, at every quality.
+#[test]
+fn a_tessellated_room_furnace_matches_the_closed_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let centre = Vec3::new(3.0, 1.5, 2.0);
+    for q in [0.3f32, 0.6, 0.9] {
+        for rho in [0.5f32, 0.85] {
+            let scene = furnace_room(dir.path(), rho);
+            let s = Simplified::whole(&scene);
+            let sol = run(&scene, q);
+            let want = PI * rho / (1.0 - rho);
+            let inside: Vec<f32> = s
+                .records
+                .iter()
+                .zip(&sol.indirect)
+                .filter(|(r, _)| r.normal.dot(centre - r.position) > 0.0)
+                .map(|(_, v)| v.x / want - 1.0)
+                .collect();
+            let mean = inside.iter().sum::<f32>() / inside.len() as f32;
+            let (lo, hi) = inside
+                .iter()
+                .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+            println!(
+                "room furnace q = {q}, rho = {rho}: mean {:+.2}%, worst {:+.2}% / {:+.2}%, {} links",
+                100.0 * mean, 100.0 * lo, 100.0 * hi, sol.stats.links
+            );
+            assert!(
+                mean.abs() <= 0.02,
+                "q = {q}, rho = {rho}: the inside records' mean is {:+.2}% off the closed form",
+                100.0 * mean
+            );
+        }
+    }
 }

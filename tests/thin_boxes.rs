@@ -192,6 +192,11 @@ fn chair_rails_cost_the_records_what_they_cost_a_traced_bounce() {
         .sum::<f64>()
         .sqrt();
     println!(
+        "records against traced: bare {:+.2}%, rails {:+.2}%",
+        100.0 * ratio(bare[0], bare[1]) - 100.0,
+        100.0 * ratio(rails[0], rails[1]) - 100.0
+    );
+    println!(
         "with rails / without: records {records:.4}, traced bounce {traced:.4} (relative standard error {sigma:.4})"
     );
     assert!(

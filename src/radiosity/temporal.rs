@@ -156,7 +156,10 @@ pub fn decompose(
     engine: &mut dyn InstancedEngine,
     quality: Quality,
 ) -> Result<TimeSeries> {
-    decompose_with(scene, simplified, engine, quality, super::solve)
+    let mut engines = super::solver::Engines::default();
+    decompose_with(scene, simplified, engine, quality, |sc, s, e, t, q| {
+        super::solver::solve_posing(sc, s, e, t, q, &mut engines)
+    })
 }
 
 /// [`decompose`] with the solver given, so that the decomposition can be

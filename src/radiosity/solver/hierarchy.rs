@@ -11,6 +11,7 @@ use std::collections::BTreeMap;
 
 use glam::{Affine3A, Vec3};
 
+use super::extent::Extent;
 use crate::radiosity::formfactor::subdivide;
 use crate::radiosity::Simplified;
 
@@ -37,6 +38,8 @@ pub struct Node {
     pub normal: Vec3,
     /// Surface area (a cluster's is the sum over its patches).
     pub area: f32,
+    /// Where the area lies (for links with a cluster end).
+    pub extent: Extent,
     /// Bounding sphere.
     pub center: Vec3,
     pub radius: f32,
@@ -205,6 +208,7 @@ impl Hierarchy {
             tri,
             normal,
             area: 0.5 * cross.length(),
+            extent: Extent::of_triangle(tri, normal),
             center,
             radius,
             parent,
@@ -226,6 +230,7 @@ impl Hierarchy {
             tri: [Vec3::ZERO; 3],
             normal: Vec3::ZERO,
             area: 0.0,
+            extent: Extent::default(),
             center: Vec3::ZERO,
             radius: 0.0,
             parent,
@@ -276,7 +281,13 @@ impl Hierarchy {
                 let p = self.nodes[c as usize].plane;
                 [r[0].min(p[0]), r[1].max(p[1])]
             });
+        let parts = children.iter().map(|&c| {
+            let c = &self.nodes[c as usize];
+            (c.area, c.extent)
+        });
+        let extent = Extent::union(parts, flat.then_some(normal));
         let node = &mut self.nodes[me as usize];
+        node.extent = extent;
         if flat {
             node.flat = true;
             node.normal = normal;

@@ -4,10 +4,11 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use super::extent::{kernel, End};
 use super::hierarchy::{Hierarchy, Node, FLAT_COS, NONE};
 use super::linear::NodeRadiosity;
 use super::pruned::Pruned;
-use crate::accel::RayEngine;
+use crate::accel::{Hit, RayEngine};
 use crate::radiosity::formfactor::{
     point_to_triangle_sides, points_to_triangle_sides, receiver_points,
 };
@@ -367,6 +368,12 @@ fn flat_coplanar(r: &Node, s: &Node) -> bool {
     r.plane[1] - at <= tol && (along[0] - at).abs() <= tol && (along[1] - at).abs() <= tol
 }
 
+/// The two ends of a link for [`kernel`].
+fn ends<'a>(r: &'a Node, s: &'a Node) -> (End<'a>, End<'a>) {
+    let end = |n: &'a Node| -> End<'a> { (&n.extent, n.flat.then_some(n.normal)) };
+    (end(r), end(s))
+}
+
 /// The point form factor from `x` on `r` to `s`, the larger of the two
 /// sides.
 fn ff_at(r: &Node, s: &Node, x: Vec3) -> f32 {
@@ -563,11 +570,13 @@ fn transfer(
 ) -> Transfer {
     let (nr, ns) = (h.node(r), h.node(s));
     if nr.cluster || ns.cluster {
-        let d = ns.center - nr.center;
-        let d2 = d.length_squared();
+        let dir = (ns.extent.centroid - nr.extent.centroid).normalize_or_zero();
+        // The kernel at the centres, made the average over the ends.
+        let (mean, _) = kernel(ends(nr, ns));
+        let f = |n: &Node| if n.flat { n.normal.dot(dir).abs() } else { 1.0 };
         return Transfer::Point {
-            dir: d / d2.sqrt(),
-            g: 1.0 / d2,
+            dir,
+            g: mean / (f(nr) * f(ns)).max(1e-6),
             vis: vis.overall,
         };
     }
@@ -645,6 +654,81 @@ fn buried_probe(h: &Hierarchy, ray: &Ray, leaf: u32) -> Option<Ray> {
     let l = (CONTACT * h.node(leaf).radius).min(0.5 * len);
     // Also refuses NaN lengths from a degenerate ray.
     (l > 0.0).then(|| Ray::segment(end, -ray.dir / ray.dir.length(), l))
+}
+
+/// Points per leaf side for [`open_shares`].
+const OPEN_POINTS: u32 = 16;
+
+/// The share of each leaf side (`[front, back]`) that is open, and the
+/// probes traced. A point is buried when a probe along the side's normal,
+/// [`CONTACT`] times the leaf's radius long, is blocked: the point lies
+/// under something closer than the leaf can resolve (the wall behind a
+/// chair rail, the floor under a closed box standing on it). A point in a room's
+/// corner or beside a box looks out past them along its normal, and so
+/// does the floor under a table higher than that reach.
+///
+/// A leaf's irradiance is its area average, in which a buried part counts
+/// dark (its rays were blocked). That is right for the light the leaf
+/// reflects, but a record stands for the surface one sees, which is never
+/// buried: the records along every rail and around every box's base came
+/// out dark by the buried share. They take the irradiance over the open
+/// part instead.
+pub fn open_shares(
+    h: &Hierarchy,
+    leaves: &[u32],
+    object_of: &(dyn Fn(u32) -> u32 + Sync),
+    engine: &dyn RayEngine,
+) -> (Vec<[f32; 2]>, u64) {
+    let np = OPEN_POINTS as usize;
+    let shares = leaves
+        .par_chunks(64)
+        .flat_map_iter(|chunk| {
+            let mut probes = Vec::with_capacity(chunk.len() * 2 * np);
+            for &l in chunk {
+                let node = h.node(l);
+                let [p0, p1, p2] = node.tri;
+                let reach = CONTACT * node.radius;
+                for side in 0..2u32 {
+                    let m = if side == 0 { node.normal } else { -node.normal };
+                    for j in 0..OPEN_POINTS {
+                        let hash = |c: u32| unit(hash3(l, j, c + 2 * side));
+                        let (mut u, mut v) = ((j as f32 + hash(0)) / np as f32, hash(1));
+                        if u + v > 1.0 {
+                            (u, v) = (1.0 - u, 1.0 - v);
+                        }
+                        let p = p0 + (p1 - p0) * u + (p2 - p0) * v;
+                        probes.push(Ray::segment(offset_origin(p, m, m), m, reach));
+                    }
+                }
+            }
+            let mut hits = vec![None; probes.len()];
+            engine.intersect_batch(&probes, &mut hits);
+            hits.chunks_exact(2 * np)
+                .zip(chunk)
+                .map(|(leaf, &l)| {
+                    let own = object_of(h.node(l).patch);
+                    // A coarsened patch partly inside its own object (a
+                    // chord of a ball) is not buried: its links' rays start
+                    // outside the object or are clipped there, so its
+                    // irradiance is already that of the open surface.
+                    let blocked = |hit: &Option<Hit>| hit.is_some_and(|hit| hit.object != own);
+                    [0, 1].map(|side| {
+                        let buried = leaf[side * np..(side + 1) * np]
+                            .iter()
+                            .filter(|h| blocked(h))
+                            .count();
+                        // A wholly buried side keeps its (dark) average.
+                        if buried == np {
+                            1.0
+                        } else {
+                            1.0 - buried as f32 / np as f32
+                        }
+                    })
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    (shares, (leaves.len() * 2 * np) as u64)
 }
 
 /// Where the line `o + t d` is inside the sphere, as `[t_in, t_out]`.

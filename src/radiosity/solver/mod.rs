@@ -20,6 +20,7 @@ use super::{IndirectSolution, Quality, Simplified, SolveStats};
 use crate::accel::RayEngine;
 use crate::scene::{Light, Scene};
 
+mod extent;
 mod hierarchy;
 mod linear;
 mod links;
@@ -82,13 +83,53 @@ pub fn solve(
     time: f32,
     quality: Quality,
 ) -> Result<IndirectSolution> {
+    solve_posing(
+        scene,
+        simplified,
+        engine,
+        time,
+        quality,
+        &mut Engines::default(),
+    )
+}
+
+/// The ray engines a solve builds for itself over the scene's kept and
+/// left-out triangles, kept from one solve to the next of one scene,
+/// simplification and backend (a temporal decomposition), which re-pose
+/// them rather than build them again.
+#[derive(Default)]
+pub struct Engines {
+    pruned: Option<pruned::Pruned>,
+}
+
+/// [`solve`] with the engines of earlier solves of the same scene and
+/// simplification (built on first use).
+pub fn solve_posing(
+    scene: &Scene,
+    simplified: &Simplified,
+    engine: &dyn RayEngine,
+    time: f32,
+    quality: Quality,
+    engines: &mut Engines,
+) -> Result<IndirectSolution> {
     let start = Instant::now();
     validate(scene, simplified)?;
     let params = Params::new(quality);
     let total_area: f32 = simplified.patches.iter().map(|p| p.area()).sum();
     let poses = scene.at(time);
     let lifts = standin::lifts(scene, simplified, &poses, engine);
-    let pruned = pruned::Pruned::new(scene, simplified, engine.backend(), &poses)?;
+    let pruned = match &mut engines.pruned {
+        Some(pruned) => {
+            pruned.pose(&poses)?;
+            pruned
+        }
+        None => engines.pruned.insert(pruned::Pruned::new(
+            scene,
+            simplified,
+            engine.backend(),
+            &poses,
+        )?),
+    };
     let mut h = Hierarchy::build(
         simplified,
         &poses,
@@ -177,7 +218,7 @@ pub fn solve(
             &h,
             &pending,
             engine,
-            &pruned,
+            pruned,
             params.rays_per_link,
             &weight,
             &mut samples,
@@ -215,9 +256,22 @@ pub fn solve(
                 .check(params.oracle_tolerance)
                 .with_context(|| format!("at t = {time}"))?;
             let indirect = op.apply(&solved.x);
+            let (open, probes) = links::open_shares(
+                &h,
+                &op.leaves,
+                &|p| simplified.patches[p as usize].object,
+                engine,
+            );
+            stats.shadow_rays += probes;
             let index = leaf_index(&h, &op.leaves);
-            let (ind, dir) =
-                output::records(simplified, &h, |l| index[l as usize], &indirect, &direct);
+            let (ind, dir) = output::records(
+                simplified,
+                &h,
+                |l| index[l as usize],
+                &indirect,
+                &direct,
+                &open,
+            );
             stats.elements = op.leaves.len();
             stats.links = op.links().len();
             stats.seconds = start.elapsed().as_secs_f64();

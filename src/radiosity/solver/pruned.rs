@@ -34,6 +34,9 @@ struct Split {
     /// Per mesh of `alone`: the share of light its surface reflects (the
     /// mean of the transport albedo's channels).
     share: Vec<f32>,
+    /// The scene object of each mesh of `kept` and of `alone`, to pose
+    /// them again at another time.
+    objects: [Vec<usize>; 2],
 }
 
 impl Pruned {
@@ -54,7 +57,8 @@ impl Pruned {
         let mut kept = (Vec::new(), Vec::new());
         let mut alone = (Vec::new(), Vec::new());
         let mut share = Vec::new();
-        for ((o, out), &pose) in scene.objects.iter().zip(&left_out).zip(poses) {
+        let mut objects = [Vec::new(), Vec::new()];
+        for (k, ((o, out), &pose)) in scene.objects.iter().zip(&left_out).zip(poses).enumerate() {
             let mut mine = out.iter().peekable();
             let (mut inside, mut outside) = (Vec::new(), Vec::new());
             for (i, &t) in o.mesh.triangles.iter().enumerate() {
@@ -64,8 +68,13 @@ impl Pruned {
                     inside.push(t);
                 }
             }
-            for (triangles, (meshes, placed)) in [(inside, &mut kept), (outside, &mut alone)] {
+            for ((triangles, (meshes, placed)), objects) in
+                [(inside, &mut kept), (outside, &mut alone)]
+                    .into_iter()
+                    .zip(&mut objects)
+            {
                 if !triangles.is_empty() {
+                    objects.push(k);
                     meshes.push(MeshGeometry {
                         positions: o.mesh.positions.clone(),
                         triangles,
@@ -88,8 +97,25 @@ impl Pruned {
                 kept: build(kept, "kept")?,
                 alone: build(alone, "left-out")?,
                 share,
+                objects,
             }),
         })
+    }
+
+    /// The same engines posed at another time of the same scene (`poses`,
+    /// one per object): a temporal decomposition's solves re-pose them
+    /// instead of building them again.
+    pub fn pose(&mut self, poses: &[Affine3A]) -> Result<()> {
+        if let Some(split) = &mut self.split {
+            for (engine, objects) in [&mut split.kept, &mut split.alone]
+                .into_iter()
+                .zip(&split.objects)
+            {
+                let placed: Vec<Affine3A> = objects.iter().map(|&o| poses[o]).collect();
+                engine.set_transforms(&placed)?;
+            }
+        }
+        Ok(())
     }
 
     /// The share of each ray's light that gets past its blockers, in
@@ -223,5 +249,44 @@ mod tests {
             .collect();
         assert_eq!(s.pruned.len(), 2);
         assert_eq!(passes(&s), [255, near, 0, 0, 0]);
+    }
+
+    /// Engines built at one time and posed at another answer as engines
+    /// built there (and not as they did before).
+    #[test]
+    fn re_posed_engines_answer_as_engines_built_at_that_pose() {
+        let (_dir, scene) = row();
+        let mut s = Simplified::whole(&scene);
+        // The near box and half the far one left out.
+        s.pruned = (0..12u32)
+            .map(|t| (0, t))
+            .chain((0..6u32).map(|t| (1, t)))
+            .collect();
+        let still = scene.at(0.0);
+        let mut moved = still.clone();
+        moved[0] = Affine3A::from_translation(Vec3::new(0.0, 5.0, 0.0)) * moved[0];
+        moved[1] = Affine3A::from_translation(Vec3::new(-0.7, 0.0, 0.0)) * moved[1];
+        let engine = accel::build(Backend::Bvh, &scene.geometry(), &moved).unwrap();
+        let rays: Vec<Ray> = (0..40)
+            .map(|k| {
+                let x = 0.5 + 0.08 * k as f32;
+                Ray::segment(Vec3::new(0.0, 0.1, 0.2), x * Vec3::X + 0.01 * Vec3::Y, 1.0)
+            })
+            .collect();
+        let passes = |pruned: &Pruned| {
+            let mut out = vec![7; rays.len()];
+            pruned.pass_batch(engine.as_ref(), &rays, &mut out);
+            out
+        };
+        let built = Pruned::new(&scene, &s, Backend::Bvh, &moved).unwrap();
+        let mut posed = Pruned::new(&scene, &s, Backend::Bvh, &still).unwrap();
+        let before = passes(&posed);
+        posed.pose(&moved).unwrap();
+        assert_eq!(passes(&posed), passes(&built));
+        assert_ne!(
+            before,
+            passes(&built),
+            "the poses must change what the rays meet"
+        );
     }
 }

@@ -11,6 +11,7 @@ use rangewalk::camera::{Camera, Projection};
 use rangewalk::eval::metrics::luminance;
 use rangewalk::image::{exr_content_hash, NO_HIT};
 use rangewalk::plan::{Plan, PlannedView};
+use rangewalk::quality::Quality;
 use rangewalk::render::multipass::{self, Indirect};
 use rangewalk::render::{self, Progress, RenderSettings};
 use rangewalk::scene::Scene;
@@ -52,7 +53,7 @@ fn two_by_two(scene: &Scene) -> Plan {
 
 fn tiny(indirect: IndirectSource) -> Settings {
     Settings {
-        quality: 0.3,
+        quality: Quality::new(0.3).unwrap(),
         size: 48,
         spp: 2,
         projection: BaseProjection::Sphere,

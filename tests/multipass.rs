@@ -621,7 +621,7 @@ mod cli {
         let series = TimeSeries {
             times: vec![0.0, 1.0],
             solutions: vec![solution(0.0), solution(1.0)],
-            quality: 0.5,
+            quality: rangewalk::quality::Quality::DEFAULT,
             stats: Default::default(),
         };
         store::save(&dir, &scene, &s, &series).unwrap();
@@ -708,7 +708,8 @@ mod cli {
 /// hierarchical radiosity solver.
 mod with_solver {
     use super::*;
-    use rangewalk::radiosity::{solve, Quality};
+    use rangewalk::quality::Quality;
+    use rangewalk::radiosity::solve;
 
     /// Cornell box, patches no larger than 150 mm: multipass indirect light
     /// from the solved records against the path tracer's.

@@ -14,7 +14,7 @@ use rangewalk::plan::coverage::coverage;
 #[cfg(feature = "embree")]
 use rangewalk::plan::lights;
 use rangewalk::plan::{self, fitness, idimage, views, IdView, Plan, PlanOptions, ViewFitness};
-use rangewalk::radiosity::Quality;
+use rangewalk::quality::Quality;
 use rangewalk::ray::Ray;
 use rangewalk::scene::{Scene, ViewSpace};
 

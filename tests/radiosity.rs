@@ -7,9 +7,10 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use rangewalk::accel::{self, Backend, InstancedEngine, RayEngine};
+use rangewalk::quality::Quality;
 use rangewalk::radiosity::formfactor::triangle_to_triangle;
 use rangewalk::radiosity::{
-    diffuse_albedo, solve, IndirectSolution, Patch, Quality, RecordPoint, Simplified,
+    diffuse_albedo, solve, IndirectSolution, Patch, RecordPoint, Simplified,
 };
 use rangewalk::ray::{offset_origin, Ray};
 use rangewalk::scene::{Light, Scene};

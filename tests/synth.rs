@@ -59,7 +59,7 @@ fn ends(scene: &Scene, times: &[f32]) -> Plan {
 
 fn settings(size: u32, spp: u32) -> Settings {
     Settings {
-        quality: 0.6,
+        quality: rangewalk::quality::Quality::new(0.6).unwrap(),
         size,
         spp,
         projection: BaseProjection::Sphere,

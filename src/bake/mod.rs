@@ -29,9 +29,10 @@ use crate::checksum::Fnv;
 use crate::image::{self, RangeImage};
 use crate::plan::{self, Plan, ViewFitness};
 use crate::progress::{ProgressBar, ProgressStyle};
+use crate::quality::Quality;
 use crate::radiosity::lookup::IrradianceCache;
 use crate::radiosity::temporal::TimeSeries;
-use crate::radiosity::{self, store as radiosity_store, Quality, Simplified};
+use crate::radiosity::{self, store as radiosity_store, Simplified};
 use crate::render::multipass::{self, Indirect};
 use crate::render::noise::NoiseReport;
 use crate::render::{Progress, RenderSettings};
@@ -116,7 +117,7 @@ impl IndirectSource {
 /// bake is resumed or extended (by shards) only with the same settings.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Settings {
-    pub quality: f32,
+    pub quality: Quality,
     /// Side of the square base images.
     pub size: u32,
     pub spp: u32,
@@ -150,15 +151,14 @@ pub struct Planning {
 impl Settings {
     /// These settings with the planner's id-image side written out: two
     /// settings make the same bake when their resolved forms are equal.
-    pub fn resolved(&self) -> Result<Settings> {
-        let quality = Quality::new(self.quality).context("--quality")?;
+    pub fn resolved(&self) -> Settings {
         let mut s = *self;
         s.planning.resolution = Some(
             self.planning
                 .resolution
-                .unwrap_or_else(|| plan::default_resolution(quality)),
+                .unwrap_or_else(|| plan::default_resolution(self.quality)),
         );
-        Ok(s)
+        s
     }
 }
 
@@ -377,7 +377,7 @@ pub fn run_observed(
         }
         (manifest, running)
     };
-    let quality = Quality::new(settings.quality).context("--quality")?;
+    let quality = settings.quality;
     summary.total = manifest.images.len();
 
     let mine: Vec<usize> = (0..manifest.images.len())
@@ -506,8 +506,7 @@ pub fn prepare(
         summary.removed = setup.remove_temporaries()?;
     }
     if settings.indirect.uses_records() {
-        let quality = Quality::new(settings.quality).context("--quality")?;
-        summary.radiosity_seconds = radiosity_stage(scene, dir, quality, engine)?.2;
+        summary.radiosity_seconds = radiosity_stage(scene, dir, settings.quality, engine)?.2;
     }
     summary.total = manifest.images.len();
     summary.finished = status::done(dir, &manifest);
@@ -528,7 +527,6 @@ fn lock_bake(
     ensure!(settings.spp > 0, "--spp must be at least 1");
     sampling.check(settings.spp)?;
     ensure!(settings.size > 0, "--size must be at least 1");
-    settings.resolved()?;
     if !dir.join(manifest::MANIFEST).exists() {
         check_fresh(dir)?;
     }
@@ -694,7 +692,7 @@ fn check_fits(
             changes.join(", ")
         );
     }
-    let (was, now) = (m.settings.resolved()?, settings.resolved()?);
+    let (was, now) = (m.settings.resolved(), settings.resolved());
     if was != now {
         bail!(
             "{} was baked with other settings ({}); use them to resume it, or another directory",
@@ -785,10 +783,7 @@ fn radiosity_stage(
         return Ok((simplified, series, None));
     }
     let start = Instant::now();
-    eprintln!(
-        "radiosity: simplifying and solving at quality {}",
-        quality.get()
-    );
+    eprintln!("radiosity: simplifying and solving at quality {quality}");
     engine.set_transforms(&scene.at(scene.animation.start))?;
     let (simplified, series) = radiosity::simplify_and_decompose(scene, engine, quality)?;
     radiosity_store::save(&path, scene, &simplified, &series)?;

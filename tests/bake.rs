@@ -2,10 +2,10 @@
 //! shard to exactly the single-machine result, and are refused for a scene
 //! that changed.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::Vec3;
-use rangewalk::accel::{self, Backend, InstancedEngine};
+use rangewalk::accel::Backend;
 use rangewalk::bake::{self, size, BaseProjection, IndirectSource, Settings, Shard};
 use rangewalk::camera::{Camera, Projection};
 use rangewalk::eval::metrics::luminance;
@@ -16,20 +16,8 @@ use rangewalk::render::multipass::{self, Indirect};
 use rangewalk::render::{self, Progress, RenderSettings};
 use rangewalk::scene::Scene;
 
-fn scene_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name)
-        .join("scene.toml")
-}
-
-fn load(path: &Path) -> Scene {
-    Scene::load(path).unwrap_or_else(|e| panic!("{e:#}"))
-}
-
-fn engine(scene: &Scene, backend: Backend) -> Box<dyn InstancedEngine> {
-    accel::build(backend, &scene.geometry(), &scene.at(scene.animation.start)).unwrap()
-}
+mod common;
+use common::{engine, load_path as load, scene_path};
 
 /// Two views at the ends of the Cornell box's view space, at two times:
 /// what the planner gives at low quality, without depending on it.

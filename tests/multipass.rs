@@ -13,13 +13,8 @@ use rangewalk::radiosity::{diffuse_albedo, Patch, RecordPoint, Simplified};
 use rangewalk::render::{self, multipass, RenderSettings, RenderStats};
 use rangewalk::scene::{Light, Scene};
 
-fn load(name: &str) -> Scene {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name)
-        .join("scene.toml");
-    Scene::load(&path).unwrap_or_else(|e| panic!("{e:#}"))
-}
+mod common;
+use common::load;
 
 fn settings(spp: u32, max_depth: Option<u32>, seed: u64) -> RenderSettings {
     RenderSettings {

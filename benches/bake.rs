@@ -15,8 +15,9 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use rangewalk::accel::{self, Backend};
 use rangewalk::camera::{Camera, Projection};
 use rangewalk::image;
+use rangewalk::quality::Quality;
 use rangewalk::radiosity::lookup::IrradianceCache;
-use rangewalk::radiosity::{self, temporal, Quality};
+use rangewalk::radiosity::{self, temporal};
 use rangewalk::render::multipass::{self, Indirect};
 use rangewalk::render::{Progress, RenderSettings};
 use rangewalk::scene::Scene;

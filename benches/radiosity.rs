@@ -9,8 +9,9 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::Vec3;
 use rangewalk::accel::{self, Backend};
+use rangewalk::quality::Quality;
 use rangewalk::radiosity::formfactor::subdivide;
-use rangewalk::radiosity::{simplify, solve, Quality, Simplified};
+use rangewalk::radiosity::{simplify, solve, Simplified};
 use rangewalk::scene::Scene;
 
 fn bundled(name: &str) -> Scene {

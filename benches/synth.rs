@@ -61,7 +61,7 @@ fn synth(c: &mut Criterion) {
             None => temporary.path().to_path_buf(),
         };
         let settings = Settings {
-            quality: 0.6,
+            quality: rangewalk::quality::Quality::new(0.6).expect("0.6 is a quality"),
             size,
             spp: 1,
             projection: BaseProjection::Sphere,

@@ -19,8 +19,9 @@ use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use rangewalk::accel::{self, Backend};
 use rangewalk::eval::metrics::luminance;
+use rangewalk::quality::Quality;
 use rangewalk::radiosity::lookup::IrradianceCache;
-use rangewalk::radiosity::{simplify, solve, Quality, Simplified};
+use rangewalk::radiosity::{simplify, solve, Simplified};
 use rangewalk::render::{self, multipass, RenderSettings};
 use rangewalk::scene::Scene;
 

@@ -33,6 +33,7 @@ pub mod image;
 pub mod output;
 pub mod plan;
 pub mod progress;
+pub mod quality;
 pub mod radiosity;
 pub mod ray;
 pub mod render;

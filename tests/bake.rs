@@ -2,33 +2,22 @@
 //! shard to exactly the single-machine result, and are refused for a scene
 //! that changed.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::Vec3;
-use rangewalk::accel::{self, Backend, InstancedEngine};
+use rangewalk::accel::Backend;
 use rangewalk::bake::{self, size, BaseProjection, IndirectSource, Settings, Shard};
 use rangewalk::camera::{Camera, Projection};
 use rangewalk::eval::metrics::luminance;
 use rangewalk::image::{exr_content_hash, NO_HIT};
 use rangewalk::plan::{Plan, PlannedView};
+use rangewalk::quality::Quality;
 use rangewalk::render::multipass::{self, Indirect};
 use rangewalk::render::{self, Progress, RenderSettings};
 use rangewalk::scene::Scene;
 
-fn scene_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name)
-        .join("scene.toml")
-}
-
-fn load(path: &Path) -> Scene {
-    Scene::load(path).unwrap_or_else(|e| panic!("{e:#}"))
-}
-
-fn engine(scene: &Scene, backend: Backend) -> Box<dyn InstancedEngine> {
-    accel::build(backend, &scene.geometry(), &scene.at(scene.animation.start)).unwrap()
-}
+mod common;
+use common::{engine, load_path as load, scene_path};
 
 /// Two views at the ends of the Cornell box's view space, at two times:
 /// what the planner gives at low quality, without depending on it.
@@ -52,7 +41,7 @@ fn two_by_two(scene: &Scene) -> Plan {
 
 fn tiny(indirect: IndirectSource) -> Settings {
     Settings {
-        quality: 0.3,
+        quality: Quality::new(0.3).unwrap(),
         size: 48,
         spp: 2,
         projection: BaseProjection::Sphere,

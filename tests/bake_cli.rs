@@ -2,21 +2,15 @@
 //! again it ends with the images of an uninterrupted bake; its errors name
 //! what is wrong.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Output};
 use std::time::{Duration, Instant};
 
 use rangewalk::bake::Manifest;
 use rangewalk::image::exr_content_hash;
 
-fn scene(name: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name)
-        .join("scene.toml")
-        .to_string_lossy()
-        .into_owned()
-}
+mod common;
+use common::{rangewalk as run, scene_arg as scene};
 
 fn args<'a>(scene: &'a str, out: &'a str) -> Vec<&'a str> {
     vec![
@@ -42,13 +36,6 @@ fn spawn(args: &[&str]) -> Child {
         .stderr(std::process::Stdio::null())
         .spawn()
         .expect("start rangewalk")
-}
-
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rangewalk"))
-        .args(args)
-        .output()
-        .expect("run rangewalk")
 }
 
 /// Kills `child` as soon as `ready` holds; returns whether it was still

@@ -1,23 +1,10 @@
 //! The `rangewalk` binary as a user meets it: outputs, figures and errors.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
-fn rangewalk(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rangewalk"))
-        .args(args)
-        .output()
-        .expect("run rangewalk")
-}
-
-fn scene(name: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name)
-        .join("scene.toml")
-        .to_string_lossy()
-        .into_owned()
-}
+mod common;
+use common::{rangewalk, scene_arg};
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
@@ -57,7 +44,7 @@ fn render_writes_a_range_image_and_reports_throughput() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("cb.exr");
     let png = dir.path().join("cb.png");
-    let cb = scene("cornell-box");
+    let cb = scene_arg("cornell-box");
     let mut args = render_args(&cb, out.to_str().unwrap());
     args.extend(["--backend", "bvh", "--preview", png.to_str().unwrap()]);
     let o = rangewalk(&args);
@@ -93,7 +80,7 @@ fn bad_inputs_fail_with_a_message_and_no_output() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("x.exr");
     let out_s = out.to_str().unwrap();
-    let cb = scene("cornell-box");
+    let cb = scene_arg("cornell-box");
     let missing = dir.path().join("nope.toml");
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (render_args(missing.to_str().unwrap(), out_s), "nope.toml"),
@@ -121,7 +108,7 @@ fn outputs_are_checked_before_the_work_starts() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("nope.toml");
     let missing = missing.to_str().unwrap();
-    let cb = scene("cornell-box");
+    let cb = scene_arg("cornell-box");
     let exr = dir.path().join("x.exr");
     let exr = exr.to_str().unwrap();
     let txt = dir.path().join("x.txt");
@@ -295,7 +282,7 @@ fn every_command_checks_its_outputs_first() {
 /// A size whose image would not fit in memory is refused while parsing.
 #[test]
 fn absurd_sizes_are_refused_before_any_allocation() {
-    let cb = scene("cornell-box");
+    let cb = scene_arg("cornell-box");
     for (size, why) in [
         ("100000x100000", "above the 32768 pixels"),
         ("32768x32768", "(8192x8192)"),
@@ -310,7 +297,7 @@ fn absurd_sizes_are_refused_before_any_allocation() {
 
 #[test]
 fn info_says_which_stages_a_scene_needs() {
-    let o = rangewalk(&["info", &scene("cornell-box")]);
+    let o = rangewalk(&["info", &scene_arg("cornell-box")]);
     assert!(o.status.success(), "{}", stderr(&o));
     let s = String::from_utf8_lossy(&o.stdout);
     assert!(
@@ -318,10 +305,10 @@ fn info_says_which_stages_a_scene_needs() {
         "{s}"
     );
     assert!(s.contains("animated over [0, 1] s"), "{s}");
-    let o = rangewalk(&["info", &scene("furnace")]);
+    let o = rangewalk(&["info", &scene_arg("furnace")]);
     let s = String::from_utf8_lossy(&o.stdout);
     assert!(s.contains("static scene: one time sample"), "{s}");
-    let o = rangewalk(&["info", &scene("glossy-sun")]);
+    let o = rangewalk(&["info", &scene_arg("glossy-sun")]);
     let s = String::from_utf8_lossy(&o.stdout);
     assert!(!s.contains("no specular rays") && s.contains("sun"), "{s}");
 }
@@ -332,7 +319,7 @@ fn export_writes_a_mitsuba_scene() {
     let out = dir.path().join("mts");
     let o = rangewalk(&[
         "export",
-        &scene("cornell-box"),
+        &scene_arg("cornell-box"),
         "--time",
         "1",
         "--size",
@@ -356,7 +343,7 @@ fn export_writes_a_mitsuba_scene() {
 /// before it bakes or writes anything.
 #[test]
 fn experiments_refuse_subpixels_out_of_range_before_any_work() {
-    let cb = scene("cornell-box");
+    let cb = scene_arg("cornell-box");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
     let out = out.to_str().unwrap();
@@ -427,7 +414,7 @@ impl Drop for TinyDisk {
 /// names the file, and leaves nothing under its name.
 #[test]
 fn a_full_disk_is_named_as_such() {
-    let cb = scene("cornell-box");
+    let cb = scene_arg("cornell-box");
     let disk = TinyDisk::new("16k");
     // A 64x64 range image is about 64 KiB.
     let big = disk.path("big.exr");
@@ -644,7 +631,7 @@ fn transforms_out_of_range_name_the_object_and_field() {
 /// A damaged radiosity store says that deleting it repairs it, and it does.
 #[test]
 fn a_damaged_radiosity_store_says_how_to_repair_it() {
-    let furnace = scene("furnace");
+    let furnace = scene_arg("furnace");
     let dir = tempfile::tempdir().unwrap();
     let store = dir.path().join("rad");
     let store_s = store.to_str().unwrap();
@@ -681,7 +668,7 @@ fn times_outside_the_animation_are_refused_naming_the_span() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("x.exr");
     let out = out.to_str().unwrap();
-    let cb = scene("cornell-box");
+    let cb = scene_arg("cornell-box");
     for t in ["-1", "1.5"] {
         let args = with(
             &cb,
@@ -695,7 +682,7 @@ fn times_outside_the_animation_are_refused_naming_the_span() {
         fails_with(&args, "[0, 1] s");
         assert!(!Path::new(out).exists());
     }
-    let static_scene = scene("furnace");
+    let static_scene = scene_arg("furnace");
     let args = with(
         &static_scene,
         out,
@@ -729,7 +716,7 @@ fn base_image_sizes_outside_the_range_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("bake");
     let out = out.to_str().unwrap();
-    let cb = scene("cornell-box");
+    let cb = scene_arg("cornell-box");
     for (size, needle) in [
         ("7", "--size 7 is below the smallest base image side, 16"),
         ("0", "--size 0 is below the smallest base image side, 16"),

@@ -14,6 +14,7 @@ use rangewalk::eval::experiments::indirect::{
 };
 use rangewalk::eval::metrics::ImageError;
 use rangewalk::eval::reference::Reference;
+use rangewalk::quality::Quality;
 use rangewalk::radiosity::{SimplifyStats, SolveStats};
 
 /// Width, height and RGB bytes of a PNG file (decoded with the `png` crate,
@@ -147,7 +148,7 @@ fn frame(frame: usize, time: f32, lrms: f64, bias: f64, render_s: f64) -> FrameR
 fn results(out: PathBuf) -> IndirectResults {
     let args = IndirectArgs {
         scene: "scenes/cornell-box/scene.toml".into(),
-        quality: vec![0.3, 0.5],
+        quality: [0.3, 0.5].map(|q| Quality::new(q).unwrap()).to_vec(),
         out: out.clone(),
         frames: Some(3),
         size: (4, 4),
@@ -364,7 +365,10 @@ mod end_to_end {
         }
         IndirectArgs {
             scene,
-            quality,
+            quality: quality
+                .into_iter()
+                .map(|q| Quality::new(q).unwrap())
+                .collect(),
             out,
             frames: Some(3),
             size: (32, 32),

@@ -9,13 +9,14 @@ use rangewalk::bake::IndirectSource;
 use rangewalk::eval::experiments::common::setup::{CommonArgs, SequenceArgs};
 use rangewalk::eval::experiments::motion::{self, MotionArgs};
 use rangewalk::plan::ViewFitness;
+use rangewalk::quality::Quality;
 use rangewalk::synth::{Blend, Fill, TimeInterp};
 
 fn args(out: PathBuf) -> MotionArgs {
     MotionArgs {
         common: CommonArgs {
             scene: PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml"),
-            quality: vec![0.3, 0.9],
+            quality: [0.3, 0.9].map(|q| Quality::new(q).unwrap()).to_vec(),
             out,
             size: (32, 32),
             reference_spp: 64,

@@ -30,17 +30,15 @@ use rangewalk::scene::{
     Animation, Bsdf, GlossyModel, Light, Material, Mesh, Motion, Object, Scene,
 };
 
+mod common;
+use common::load;
+
 const BLOCK: usize = 8;
 const MAX_BIAS: f64 = 0.005;
 const MAX_FLOOR_RATIO: f64 = 2.0;
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn load(name: &str) -> Scene {
-    Scene::load(repo().join("scenes").join(name).join("scene.toml"))
-        .unwrap_or_else(|e| panic!("{e:#}"))
 }
 
 /// The Python interpreter with Mitsuba 3, or a failure saying how to get one.

@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 
 /// Lowest first; modules on one line are independent of each other.
 const LAYERS: &[&[&str]] = &[
-    &["rng", "checksum", "ray", "alloc", "output", "progress"],
+    &[
+        "rng", "checksum", "ray", "alloc", "output", "progress", "quality",
+    ],
     &["camera"],
     &["image"],
     &["scene"],

@@ -13,13 +13,8 @@ use rangewalk::radiosity::{diffuse_albedo, Patch, RecordPoint, Simplified};
 use rangewalk::render::{self, multipass, RenderSettings, RenderStats};
 use rangewalk::scene::{Light, Scene};
 
-fn load(name: &str) -> Scene {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name)
-        .join("scene.toml");
-    Scene::load(&path).unwrap_or_else(|e| panic!("{e:#}"))
-}
+mod common;
+use common::load;
 
 fn settings(spp: u32, max_depth: Option<u32>, seed: u64) -> RenderSettings {
     RenderSettings {
@@ -621,7 +616,7 @@ mod cli {
         let series = TimeSeries {
             times: vec![0.0, 1.0],
             solutions: vec![solution(0.0), solution(1.0)],
-            quality: 0.5,
+            quality: rangewalk::quality::Quality::DEFAULT,
             stats: Default::default(),
         };
         store::save(&dir, &scene, &s, &series).unwrap();
@@ -708,7 +703,8 @@ mod cli {
 /// hierarchical radiosity solver.
 mod with_solver {
     use super::*;
-    use rangewalk::radiosity::{solve, Quality};
+    use rangewalk::quality::Quality;
+    use rangewalk::radiosity::solve;
 
     /// Cornell box, patches no larger than 150 mm: multipass indirect light
     /// from the solved records against the path tracer's.

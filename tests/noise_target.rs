@@ -3,8 +3,6 @@
 //! reached is the target's within the estimator's own uncertainty, and the
 //! result depends on neither the thread count nor the brightness.
 
-use std::path::PathBuf;
-
 use glam::Vec3;
 use rangewalk::accel::{self, Backend};
 use rangewalk::camera::Camera;
@@ -16,13 +14,8 @@ use rangewalk::render::noise::{luminance, NoiseTarget};
 use rangewalk::render::{Progress, RenderSettings};
 use rangewalk::scene::Scene;
 
-fn load(name: &str) -> Scene {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name)
-        .join("scene.toml");
-    Scene::load(&path).unwrap_or_else(|e| panic!("{e:#}"))
-}
+mod common;
+use common::load;
 
 fn camera(scene: &Scene, size: u32) -> Camera {
     scene

@@ -8,8 +8,10 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+mod common;
+
 fn rangewalk(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rangewalk"))
+    common::command()
         .args(args)
         .env_remove("DISPLAY")
         .output()

@@ -2,8 +2,6 @@
 //! energy conservation of the glossy lobes, determinism across thread
 //! counts, scale invariance and robustness to extreme inputs.
 
-use std::path::PathBuf;
-
 use glam::Vec3;
 use rangewalk::accel::{self, Backend};
 use rangewalk::bsdf::Lobes;
@@ -12,13 +10,8 @@ use rangewalk::image::{RangeImage, NO_HIT};
 use rangewalk::render::{render, RenderSettings, RenderStats};
 use rangewalk::scene::{Bsdf, Emission, GlossyModel, Light, Scene};
 
-fn load(name: &str) -> Scene {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name)
-        .join("scene.toml");
-    Scene::load(&path).unwrap_or_else(|e| panic!("{e:#}"))
-}
+mod common;
+use common::load;
 
 fn render_with(
     backend: Backend,

@@ -2,11 +2,10 @@
 //! Resolutions are small so that every test stays fast, the studio's 72k
 //! triangles included.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
 use glam::Vec3;
-use rangewalk::accel::{self, Backend, InstancedEngine};
+use rangewalk::accel::{Backend, InstancedEngine};
 use rangewalk::camera::{Camera, Projection};
 #[cfg(feature = "embree")]
 use rangewalk::image::NO_HIT;
@@ -14,18 +13,12 @@ use rangewalk::plan::coverage::coverage;
 #[cfg(feature = "embree")]
 use rangewalk::plan::lights;
 use rangewalk::plan::{self, fitness, idimage, views, IdView, Plan, PlanOptions, ViewFitness};
-use rangewalk::radiosity::Quality;
+use rangewalk::quality::Quality;
 use rangewalk::ray::Ray;
 use rangewalk::scene::{Scene, ViewSpace};
 
-fn scenes_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")
-}
-
-fn load(name: &str) -> Scene {
-    Scene::load(scenes_dir().join(name).join("scene.toml"))
-        .unwrap_or_else(|e| panic!("{name}: {e:#}"))
-}
+mod common;
+use common::{engine, load, rangewalk, scenes_dir};
 
 fn bundled() -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(scenes_dir())
@@ -43,10 +36,6 @@ fn backends() -> &'static [Backend] {
     let b = Backend::available();
     assert!(!b.is_empty(), "this build has no ray engine");
     b
-}
-
-fn engine(s: &Scene, backend: Backend) -> Box<dyn InstancedEngine> {
-    accel::build(backend, &s.geometry(), &s.at(s.animation.start)).unwrap()
 }
 
 fn plan_with(s: &Scene, q: f32, resolution: Option<u32>, master_list: bool) -> Plan {
@@ -565,13 +554,6 @@ fn plan_json_round_trips_and_names_its_fields() {
     assert!(v["steps"][0]["seconds"].is_number());
     // Only the plan is left in the folder: the temporary file was renamed.
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
-}
-
-fn rangewalk(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rangewalk"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 #[test]

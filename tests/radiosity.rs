@@ -6,18 +6,18 @@ use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
-use rangewalk::accel::{self, Backend, InstancedEngine, RayEngine};
+use rangewalk::accel::RayEngine;
+use rangewalk::quality::Quality;
 use rangewalk::radiosity::formfactor::triangle_to_triangle;
 use rangewalk::radiosity::{
-    diffuse_albedo, solve, IndirectSolution, Patch, Quality, RecordPoint, Simplified,
+    diffuse_albedo, solve, IndirectSolution, Patch, RecordPoint, Simplified,
 };
 use rangewalk::ray::{offset_origin, Ray};
 use rangewalk::scene::{Light, Scene};
 use rayon::prelude::*;
 
-fn load(path: &Path) -> Scene {
-    Scene::load(path).unwrap_or_else(|e| panic!("{e:#}"))
-}
+mod common;
+use common::{engine_at as engine, load_path as load};
 
 fn bundled(name: &str) -> Scene {
     load(
@@ -26,15 +26,6 @@ fn bundled(name: &str) -> Scene {
             .join(name)
             .join("scene.toml"),
     )
-}
-
-fn engine(scene: &Scene, time: f32) -> Box<dyn InstancedEngine> {
-    accel::build(
-        Backend::default_available(),
-        &scene.geometry(),
-        &scene.at(time),
-    )
-    .unwrap()
 }
 
 fn run(scene: &Scene, q: f32) -> IndirectSolution {

@@ -6,14 +6,8 @@ use std::path::PathBuf;
 use glam::{Vec2, Vec3};
 use rangewalk::scene::{Bsdf, Scene};
 
-fn scenes_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")
-}
-
-fn load(name: &str) -> Scene {
-    Scene::load(scenes_dir().join(name).join("scene.toml"))
-        .unwrap_or_else(|e| panic!("{name}: {e:#}"))
-}
+mod common;
+use common::{load, scenes_dir};
 
 #[test]
 fn every_bundled_scene_loads() {

@@ -6,8 +6,9 @@ use std::path::Path;
 
 use glam::Vec3;
 use rangewalk::accel::{self, Backend};
+use rangewalk::quality::Quality;
 use rangewalk::radiosity::simplify::{simplify_report, Fate, Report, AREA_TOLERANCE};
-use rangewalk::radiosity::{simplify, Quality, Simplified};
+use rangewalk::radiosity::{simplify, Simplified};
 use rangewalk::scene::Scene;
 
 /// OBJ text accumulated group by group.

@@ -15,16 +15,8 @@ use std::time::{Duration, Instant};
 use rangewalk::bake::Manifest;
 use rangewalk::image::exr_content_hash;
 
-fn scene() -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes/cornell-box/scene.toml")
-        .to_string_lossy()
-        .into_owned()
-}
-
-fn rangewalk() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_rangewalk"))
-}
+mod common;
+use common::{command as rangewalk, scene_arg};
 
 fn run(cmd: &mut Command) -> Output {
     cmd.output().expect("run rangewalk")
@@ -122,7 +114,7 @@ fn slurm_scripts_carry_every_bake_option() {
     let out = tmp.path().join("b");
     let s = ok(rangewalk().args([
         "slurm",
-        &scene(),
+        &scene_arg("cornell-box"),
         "--quality",
         "0.4",
         "--out",
@@ -191,7 +183,7 @@ fn slurm_and_shard_errors_name_what_is_wrong() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("b");
     let o = out.to_str().unwrap();
-    let scene = scene();
+    let scene = scene_arg("cornell-box");
     let slurm = |extra: &[&str]| {
         let mut c = rangewalk();
         c.args(["slurm", &scene, "--quality", "0.3", "--out", o]);
@@ -242,7 +234,7 @@ fn status_and_finish_follow_a_sharded_bake() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("b");
     let o = out.to_str().unwrap();
-    let scene = scene();
+    let scene = scene_arg("cornell-box");
     let bake = || {
         let mut c = rangewalk();
         c.args([
@@ -507,7 +499,7 @@ impl Cluster {
     fn submit(&self, dir: &Path) -> Jobs {
         let mut c = rangewalk();
         c.env("SLURM_CONF", &self.conf)
-            .args(["slurm", &scene(), "--out"])
+            .args(["slurm", &scene_arg("cornell-box"), "--out"])
             .arg(dir)
             .args(SETTINGS)
             .args(["--tasks", "4", "--submit"]);
@@ -593,7 +585,7 @@ fn a_slurm_array_bake_equals_the_single_machine_bake_even_with_a_task_cancelled(
     let single = tmp.path().join("single");
     let start = Instant::now();
     ok(rangewalk()
-        .args(["bake", &scene(), "--out"])
+        .args(["bake", &scene_arg("cornell-box"), "--out"])
         .arg(&single)
         .args(SETTINGS));
     println!(

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use glam::Vec3;
-use rangewalk::accel::{self, Backend, InstancedEngine};
+use rangewalk::accel::Backend;
 use rangewalk::bake::{self, BaseProjection, IndirectSource, Settings, Shard};
 use rangewalk::camera::{Camera, Projection};
 use rangewalk::eval::metrics::{self, luminance};
@@ -19,25 +19,8 @@ use rangewalk::render::{self, RenderSettings};
 use rangewalk::scene::Scene;
 use rangewalk::synth::{Blend, Fill, Filter, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET};
 
-fn scene_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(name)
-        .join("scene.toml")
-}
-
-fn load(path: &Path) -> Scene {
-    Scene::load(path).unwrap_or_else(|e| panic!("{e:#}"))
-}
-
-fn engine(scene: &Scene, t: f32) -> Box<dyn InstancedEngine> {
-    accel::build(
-        Backend::default_available(),
-        &scene.geometry(),
-        &scene.at(t),
-    )
-    .unwrap()
-}
+mod common;
+use common::{engine_at as engine, load_path as load, rangewalk, scene_path};
 
 /// Views at the Cornell box's view-space ends, each at `times`.
 fn ends(scene: &Scene, times: &[f32]) -> Plan {
@@ -59,7 +42,7 @@ fn ends(scene: &Scene, times: &[f32]) -> Plan {
 
 fn settings(size: u32, spp: u32) -> Settings {
     Settings {
-        quality: 0.6,
+        quality: rangewalk::quality::Quality::new(0.6).unwrap(),
         size,
         spp,
         projection: BaseProjection::Sphere,
@@ -617,13 +600,6 @@ fn a_light_seen_in_a_mirror_keeps_its_radiance_when_reshaded() {
         (0.75..=1.35).contains(&(got / want)),
         "the light in the mirror: {got:.3} synthesized, {want:.3} rendered"
     );
-}
-
-fn rangewalk(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rangewalk"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 #[test]

@@ -7,8 +7,9 @@ use std::path::PathBuf;
 use anyhow::Result;
 use glam::Vec3;
 use rangewalk::accel::{self, Backend, RayEngine};
+use rangewalk::quality::Quality;
 use rangewalk::radiosity::temporal::{compare, decompose_with, Thresholds, TimeSeries};
-use rangewalk::radiosity::{IndirectSolution, Quality, Simplified, SolveStats};
+use rangewalk::radiosity::{IndirectSolution, Simplified, SolveStats};
 use rangewalk::ray::Ray;
 use rangewalk::scene::{Motion, Scene};
 
@@ -161,7 +162,7 @@ fn interpolation_is_linear_between_and_held_outside() {
             solution(1.0, b.clone()),
             solution(3.0, c.clone()),
         ],
-        quality: 0.5,
+        quality: Quality::DEFAULT,
         stats: Default::default(),
     };
     assert_eq!(series.indirect_at(-2.0), a);

@@ -5,8 +5,9 @@ use std::path::Path;
 
 use rangewalk::accel::{self, Backend};
 use rangewalk::eval::metrics::luminance;
+use rangewalk::quality::Quality;
 use rangewalk::radiosity::lookup::IrradianceCache;
-use rangewalk::radiosity::{solve, Quality, Simplified};
+use rangewalk::radiosity::{solve, Simplified};
 use rangewalk::render::{self, multipass, RenderSettings};
 use rangewalk::scene::Scene;
 

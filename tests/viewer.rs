@@ -15,6 +15,8 @@ use glam::Vec3;
 use rangewalk::synth::walk::frame_times;
 use rangewalk::viewer::overlay;
 
+mod common;
+
 /// An X server of the test's own, stopped when dropped.
 struct Xvfb {
     child: Child,
@@ -75,7 +77,7 @@ impl Drop for Xvfb {
 }
 
 fn rangewalk(args: &[&str], display: Option<&str>) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_rangewalk"));
+    let mut c = common::command();
     c.args(args);
     match display {
         Some(d) => c.env("DISPLAY", d),
@@ -102,7 +104,7 @@ fn bake() -> &'static Path {
         if dir.exists() {
             std::fs::remove_dir_all(&dir).unwrap();
         }
-        let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml");
+        let scene = common::scene_path("cornell-box");
         let o = rangewalk(
             &[
                 "bake",

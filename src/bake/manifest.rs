@@ -115,8 +115,7 @@ impl Manifest {
             // recorded it). So an older bake resumes, or is refused, as a
             // new one would be.
             2 => {
-                let quality = crate::radiosity::Quality::new(m.settings.quality)
-                    .with_context(|| format!("{}: `settings.quality`", path.display()))?;
+                let quality = m.settings.quality;
                 let side = m.plan.resolution;
                 m.settings.planning = super::Planning {
                     // As a new manifest records it: `None` for the default.
@@ -271,6 +270,7 @@ pub fn is_temporary(name: &std::ffi::OsStr) -> bool {
 mod tests {
     use super::*;
     use crate::plan::PlannedView;
+    use crate::quality::Quality;
     use glam::Vec3;
 
     fn entry(view: usize, time_index: usize, time: f32, file: &str) -> ImageEntry {
@@ -303,7 +303,7 @@ mod tests {
                 materials: Vec::new(),
             },
             settings: Settings {
-                quality: 0.5,
+                quality: Quality::new(0.5).unwrap(),
                 size: 4,
                 spp: 1,
                 projection: super::super::BaseProjection::Sphere,

@@ -21,17 +21,17 @@ use std::time::Instant;
 
 use anyhow::{bail, ensure, Context, Result};
 use glam::Vec3;
-use serde::{Deserialize, Serialize};
 
-use crate::accel::{Backend, InstancedEngine};
+use crate::accel::InstancedEngine;
 use crate::camera::{Camera, Projection};
 use crate::checksum::Fnv;
 use crate::image::{self, RangeImage};
-use crate::plan::{self, Plan, ViewFitness};
+use crate::plan::Plan;
 use crate::progress::{ProgressBar, ProgressStyle};
+use crate::quality::Quality;
 use crate::radiosity::lookup::IrradianceCache;
 use crate::radiosity::temporal::TimeSeries;
-use crate::radiosity::{self, store as radiosity_store, Quality, Simplified};
+use crate::radiosity::{self, store as radiosity_store, Simplified};
 use crate::render::multipass::{self, Indirect};
 use crate::render::noise::NoiseReport;
 use crate::render::{Progress, RenderSettings};
@@ -41,6 +41,7 @@ use crate::scene::Scene;
 pub mod lock;
 pub mod manifest;
 pub mod sampling;
+pub mod settings;
 pub mod size;
 pub mod slurm;
 pub mod status;
@@ -48,6 +49,7 @@ pub mod window;
 
 pub use manifest::{ImageEntry, Manifest};
 pub use sampling::Sampling;
+pub use settings::{BaseProjection, IndirectSource, Planning, Settings, Shard};
 pub use window::BaseWindow;
 
 /// The layers a base image holds besides its radiance.
@@ -56,144 +58,6 @@ pub const INDIRECT: &str = "indirect";
 pub const DIFFUSE_DIRECT: &str = "diffuse_direct";
 /// The folder of a bake directory that holds its Slurm job scripts and logs.
 pub const SLURM_DIR: &str = "slurm";
-
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Serialize,
-    Deserialize,
-    strum::Display,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
-#[serde(rename_all = "lowercase")]
-#[strum(serialize_all = "lowercase")]
-pub enum BaseProjection {
-    /// Every direction, equal-area octahedral: the viewer may turn freely.
-    Sphere,
-    /// 180° angular fisheye along the scene's view direction (the paper's).
-    Fisheye,
-}
-
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Serialize,
-    Deserialize,
-    strum::Display,
-    strum::EnumString,
-    strum::IntoStaticStr,
-    strum::VariantArray,
-    strum::EnumMessage,
-)]
-#[serde(rename_all = "lowercase")]
-#[strum(serialize_all = "lowercase")]
-pub enum IndirectSource {
-    /// Looked up from radiosity records interpolated in time (§4.3–4.4).
-    Radiosity,
-    /// Radiosity records seen through one traced bounce at the surfaces a base shows (a final gather): where surfaces meet, the darkening the records miss.
-    Gather,
-    /// Traced: one diffuse bounce per sample continued by the path tracer.
-    Path,
-}
-
-impl IndirectSource {
-    /// Whether the bake solves for radiosity records.
-    pub fn uses_records(self) -> bool {
-        matches!(self, Self::Radiosity | Self::Gather)
-    }
-}
-
-/// Everything that decides a bake's images besides its [`Sampling`]. A
-/// bake is resumed or extended (by shards) only with the same settings.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Settings {
-    pub quality: f32,
-    /// Side of the square base images.
-    pub size: u32,
-    pub spp: u32,
-    pub projection: BaseProjection,
-    pub indirect: IndirectSource,
-    pub seed: u64,
-    pub backend: Backend,
-    pub max_depth: Option<u32>,
-    /// How the plan (views and times) is made: a resume reuses the plan it
-    /// finds, so it must have been made the way this run would make it.
-    #[serde(default)]
-    pub planning: Planning,
-}
-
-/// The planner's options besides the quality (`rangewalk bake
-/// --resolution`, `--master-list`, `--view-fitness`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Planning {
-    /// Side of the id-images; `None`: the quality's default (naming the
-    /// default resumes a bake made without naming it, see
-    /// [`Settings::resolved`]).
-    pub resolution: Option<u32>,
-    pub master_list: bool,
-    pub view_fitness: ViewFitness,
-    /// Whether every base keeps its whole projection (`--whole-bases`),
-    /// not only the window that may see the scene ([`window`]).
-    #[serde(default)]
-    pub whole: bool,
-}
-
-impl Settings {
-    /// These settings with the planner's id-image side written out: two
-    /// settings make the same bake when their resolved forms are equal.
-    pub fn resolved(&self) -> Result<Settings> {
-        let quality = Quality::new(self.quality).context("--quality")?;
-        let mut s = *self;
-        s.planning.resolution = Some(
-            self.planning
-                .resolution
-                .unwrap_or_else(|| plan::default_resolution(quality)),
-        );
-        Ok(s)
-    }
-}
-
-/// Which part of the images this run renders: every `count`-th image from
-/// the `index`-th, in manifest order.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Shard {
-    pub index: u32,
-    pub count: u32,
-}
-
-impl Shard {
-    pub const ALL: Shard = Shard { index: 0, count: 1 };
-
-    pub fn owns(&self, k: usize) -> bool {
-        k % self.count as usize == self.index as usize
-    }
-}
-
-impl std::str::FromStr for Shard {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, String> {
-        let err = || format!("shard `{s}` is not i/n with 0 <= i < n, e.g. 0/4");
-        let (i, n) = s.split_once('/').ok_or_else(err)?;
-        let (index, count) = (
-            i.trim().parse::<u32>().map_err(|_| err())?,
-            n.trim().parse::<u32>().map_err(|_| err())?,
-        );
-        if count == 0 || index >= count {
-            return Err(err());
-        }
-        Ok(Shard { index, count })
-    }
-}
 
 /// Samples per base-image pixel of `rangewalk bake` and the C ABI.
 pub const DEFAULT_SPP: u32 = 16;
@@ -377,7 +241,7 @@ pub fn run_observed(
         }
         (manifest, running)
     };
-    let quality = Quality::new(settings.quality).context("--quality")?;
+    let quality = settings.quality;
     summary.total = manifest.images.len();
 
     let mine: Vec<usize> = (0..manifest.images.len())
@@ -506,8 +370,7 @@ pub fn prepare(
         summary.removed = setup.remove_temporaries()?;
     }
     if settings.indirect.uses_records() {
-        let quality = Quality::new(settings.quality).context("--quality")?;
-        summary.radiosity_seconds = radiosity_stage(scene, dir, quality, engine)?.2;
+        summary.radiosity_seconds = radiosity_stage(scene, dir, settings.quality, engine)?.2;
     }
     summary.total = manifest.images.len();
     summary.finished = status::done(dir, &manifest);
@@ -528,7 +391,6 @@ fn lock_bake(
     ensure!(settings.spp > 0, "--spp must be at least 1");
     sampling.check(settings.spp)?;
     ensure!(settings.size > 0, "--size must be at least 1");
-    settings.resolved()?;
     if !dir.join(manifest::MANIFEST).exists() {
         check_fresh(dir)?;
     }
@@ -694,7 +556,7 @@ fn check_fits(
             changes.join(", ")
         );
     }
-    let (was, now) = (m.settings.resolved()?, settings.resolved()?);
+    let (was, now) = (m.settings.resolved(), settings.resolved());
     if was != now {
         bail!(
             "{} was baked with other settings ({}); use them to resume it, or another directory",
@@ -785,10 +647,7 @@ fn radiosity_stage(
         return Ok((simplified, series, None));
     }
     let start = Instant::now();
-    eprintln!(
-        "radiosity: simplifying and solving at quality {}",
-        quality.get()
-    );
+    eprintln!("radiosity: simplifying and solving at quality {quality}");
     engine.set_transforms(&scene.at(scene.animation.start))?;
     let (simplified, series) = radiosity::simplify_and_decompose(scene, engine, quality)?;
     radiosity_store::save(&path, scene, &simplified, &series)?;

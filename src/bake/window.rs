@@ -32,7 +32,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::camera::Camera;
-use crate::scene::{Light, Scene, ViewSpace};
+use crate::scene::{Light, Scene};
 
 /// Multiple of the window's corner, in pixels: synthesis groups base
 /// pixels into tiles of 16² and those into blocks of 8² tiles, in the order
@@ -269,12 +269,8 @@ fn angle_to_box(p: Vec3, a: Vec3, lo: Vec3, hi: Vec3) -> f32 {
 /// has none).
 pub fn viewpoints(scene: &Scene, views: &[Vec3]) -> (Vec3, Vec3) {
     let mut points = views.to_vec();
-    match scene.view_space {
-        Some(ViewSpace::Segment { a, b }) => points.extend([a, b]),
-        Some(ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max }) => {
-            points.extend([min, max])
-        }
-        None => {}
+    if let Some((lo, hi)) = scene.view_space.map(|s| s.corners()) {
+        points.extend([lo, hi]);
     }
     bounds(&points).unwrap_or((Vec3::ZERO, Vec3::ZERO))
 }

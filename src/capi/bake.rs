@@ -11,7 +11,7 @@ use super::status::rw_status;
 use crate::accel::{self, Backend};
 use crate::bake::{self, Bake, BaseProjection, IndirectSource, Sampling, Shard};
 use crate::plan::{self, PlanOptions};
-use crate::radiosity::{Quality, DEFAULT_QUALITY};
+use crate::quality::Quality;
 use crate::scene::Scene;
 use crate::synth::{self, Kept};
 
@@ -74,7 +74,7 @@ impl Default for rw_bake_options {
             crate::image::parse_size(bake::DEFAULT_FRAME_SIZE).expect("a valid default size");
         Self {
             struct_size: std::mem::size_of::<Self>() as u32,
-            quality: DEFAULT_QUALITY,
+            quality: Quality::DEFAULT.get(),
             size: 0,
             spp: bake::DEFAULT_SPP,
             seed: 0,
@@ -179,7 +179,7 @@ fn settings(
         max_spp: (o.max_spp != 0).then_some(o.max_spp),
     };
     let settings = bake::Settings {
-        quality: quality.get(),
+        quality,
         size,
         spp,
         projection,
@@ -238,7 +238,7 @@ pub unsafe extern "C" fn rw_bake_run(
         )
         .map_err(failed)?;
         let plan_options = PlanOptions {
-            quality: Quality::new(settings.quality).map_err(failed)?,
+            quality: settings.quality,
             resolution: settings.planning.resolution,
             master_list: settings.planning.master_list,
             view_fitness: settings.planning.view_fitness,

@@ -3,12 +3,12 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use rangewalk::accel::InstancedEngine;
 use rangewalk::bake::{self, IndirectSource, Shard};
 use rangewalk::image;
 use rangewalk::plan::{self, PlanOptions};
-use rangewalk::radiosity::Quality;
+use rangewalk::quality::Quality;
 
 use super::bake_options::BakeOptions;
 use super::bake_status;
@@ -21,7 +21,7 @@ pub struct BakeArgs {
     scene: Option<PathBuf>,
     /// Quality in [0, 1] of every stage: views, times, radiosity.
     #[arg(long, required_unless_present_any = ["status", "finish"])]
-    quality: Option<f32>,
+    quality: Option<Quality>,
     /// Bake directory: created, or resumed if it holds an unfinished bake of
     /// the same scene and settings.
     #[arg(long, required_unless_present_any = ["status", "finish"])]
@@ -64,7 +64,6 @@ pub fn run(args: BakeArgs) -> Result<()> {
     let (Some(scene), Some(quality), Some(out)) = (&args.scene, args.quality, &args.out) else {
         bail!("bake needs a scene, --quality and --out");
     };
-    let quality = Quality::new(quality).context("--quality")?;
     image::check_output_dir("--out", out)?;
     let shard = if args.shard_from_env {
         bake::slurm::shard_from_env()?

@@ -6,7 +6,7 @@ use rangewalk::accel::Backend;
 use rangewalk::bake::{self, BaseProjection, IndirectSource};
 use rangewalk::image;
 use rangewalk::plan::ViewFitness;
-use rangewalk::radiosity::Quality;
+use rangewalk::quality::Quality;
 use rangewalk::scene::Scene;
 
 use super::choice;
@@ -76,7 +76,7 @@ impl BakeOptions {
     ) -> Result<(bake::Settings, bake::Sampling, String)> {
         let (size, why) = bake::size::resolve(s, self.size, self.projection, self.frame_size)?;
         let settings = bake::Settings {
-            quality: quality.get(),
+            quality,
             size,
             spp: self.spp,
             projection: self.projection,

@@ -13,6 +13,7 @@ use rangewalk::eval::experiments::walkthrough::{self, BakeViews};
 use rangewalk::eval::experiments::{indirect, motion, views};
 use rangewalk::image;
 use rangewalk::plan::ViewFitness;
+use rangewalk::quality::Quality;
 use rangewalk::scene::ViewSpace;
 use rangewalk::synth::{Blend, Fill, TimeInterp};
 
@@ -124,7 +125,7 @@ pub struct Indirect {
     pub scene: PathBuf,
     /// Qualities to measure, comma-separated, each in [0, 1].
     #[arg(long, value_delimiter = ',', default_value = "0.3,0.6,0.9")]
-    pub quality: Vec<f32>,
+    pub quality: Vec<Quality>,
     /// Output folder (written as `<out>.partial`, renamed when complete).
     #[arg(long)]
     pub out: PathBuf,
@@ -177,7 +178,7 @@ pub struct Common {
     /// Qualities to measure, comma-separated, each in [0, 1]; the same
     /// quality drives every stage (plan, radiosity).
     #[arg(long, value_delimiter = ',', default_value = "0.3,0.6,0.9")]
-    pub quality: Vec<f32>,
+    pub quality: Vec<Quality>,
     /// Output folder (written as `<out>.partial`, renamed when complete);
     /// the bakes and references in it are reused by a rerun.
     #[arg(long)]

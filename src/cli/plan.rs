@@ -2,11 +2,11 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use rangewalk::accel::Backend;
 use rangewalk::image;
 use rangewalk::plan::{self, PlanOptions, ViewFitness};
-use rangewalk::radiosity::Quality;
+use rangewalk::quality::Quality;
 use rangewalk::scene::{self, ViewSpace};
 use strum::EnumMessage;
 
@@ -18,7 +18,7 @@ pub struct PlanArgs {
     scene: PathBuf,
     /// Quality in [0, 1]: the fitness every cell and interval must reach.
     #[arg(long)]
-    quality: f32,
+    quality: Quality,
     /// Write the plan here as JSON.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -41,7 +41,7 @@ pub struct PlanArgs {
 /// `rangewalk plan`: the plan, the fitness behind each choice and each
 /// step's time on stdout; the JSON in `--out`.
 pub fn run(args: PlanArgs) -> Result<()> {
-    let quality = Quality::new(args.quality).context("--quality")?;
+    let quality = args.quality;
     if let Some(n) = args.resolution.filter(|n| !plan::RESOLUTIONS.contains(n)) {
         bail!(
             "--resolution {n} is outside [{}, {}]",

@@ -3,11 +3,12 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use rangewalk::accel::Backend;
 use rangewalk::image;
+use rangewalk::quality::Quality;
 use rangewalk::radiosity::temporal::{self, TimeSeries};
-use rangewalk::radiosity::{self, store as radiosity_store, Quality, Simplified};
+use rangewalk::radiosity::{self, store as radiosity_store, Simplified};
 use rangewalk::scene::Scene;
 
 use super::{choice, engine_at_start, load};
@@ -17,8 +18,8 @@ use super::{choice, engine_at_start, load};
 pub struct RadiosityArgs {
     scene: PathBuf,
     /// Quality in [0, 1]: finer simplification, more solves.
-    #[arg(long, default_value_t = radiosity::DEFAULT_QUALITY)]
-    quality: f32,
+    #[arg(long, default_value_t = Quality::DEFAULT)]
+    quality: Quality,
     /// Bake directory to write (replaced if it holds an earlier bake).
     #[arg(long)]
     out: PathBuf,
@@ -29,11 +30,10 @@ pub struct RadiosityArgs {
 pub fn run(args: RadiosityArgs) -> Result<()> {
     let RadiosityArgs {
         scene,
-        quality,
+        quality: q,
         out,
         backend,
     } = args;
-    let q = Quality::new(quality).context("--quality")?;
     image::check_output_dir("--out", &out)?;
     let s = load(&scene)?;
     let mut engine = engine_at_start(&s, backend)?;
@@ -66,9 +66,7 @@ fn report_radiosity(s: &Scene, simplified: &Simplified, series: &TimeSeries) {
         );
     }
     let d = &series.stats;
-    let limits = Quality::new(series.quality)
-        .ok()
-        .map(temporal::Thresholds::for_quality);
+    let l = temporal::Thresholds::for_quality(series.quality);
     if d.static_scene {
         println!("temporal decomposition skipped: static scene, one solution");
     } else if d.intervals.is_empty() {
@@ -78,17 +76,13 @@ fn report_radiosity(s: &Scene, simplified: &Simplified, series: &TimeSeries) {
             "temporal decomposition: {} solves, depth {} of {} allowed, {:.3} s",
             d.solves, d.depth, d.max_depth, d.seconds
         );
-        if let Some(l) = limits {
-            println!(
-                "  split while relative RMS > {:.4} or fewer than {:.0}% of records unchanged",
-                l.relative_rms,
-                100.0 * l.unchanged_fraction
-            );
-        }
+        println!(
+            "  split while relative RMS > {:.4} or fewer than {:.0}% of records unchanged",
+            l.relative_rms,
+            100.0 * l.unchanged_fraction
+        );
         for i in &d.intervals {
-            let incoherent = limits.is_some_and(|l| {
-                i.relative_rms > l.relative_rms || i.unchanged < l.unchanged_fraction
-            });
+            let incoherent = i.relative_rms > l.relative_rms || i.unchanged < l.unchanged_fraction;
             println!(
                 "  [{}, {}] depth {}: relative RMS {:.4}, {:.1}% records unchanged: {}",
                 i.t0,

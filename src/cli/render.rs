@@ -8,9 +8,10 @@ use rangewalk::accel::{self, Backend, InstancedEngine};
 use rangewalk::bake::IndirectSource;
 use rangewalk::camera::Camera;
 use rangewalk::image::{self, RangeImage};
+use rangewalk::quality::Quality;
 use rangewalk::radiosity::lookup::IrradianceCache;
 use rangewalk::radiosity::temporal::TimeSeries;
-use rangewalk::radiosity::{self, store as radiosity_store, Quality, Simplified};
+use rangewalk::radiosity::{self, store as radiosity_store, Simplified};
 use rangewalk::render::{self, multipass, RenderSettings, RenderStats};
 use rangewalk::scene::Scene;
 
@@ -136,7 +137,7 @@ pub struct IndirectArgs {
     /// Quality in [0, 1] of the radiosity stages (with `--indirect
     /// radiosity` or `gather`): 0.5 if not given, or the bake's.
     #[arg(long)]
-    quality: Option<f32>,
+    quality: Option<Quality>,
     /// Bake directory: used if it exists, written if not (with
     /// `--indirect radiosity` or `gather`).
     #[arg(long)]
@@ -184,14 +185,13 @@ fn render_multipass(
     settings: &RenderSettings,
     args: &IndirectArgs,
 ) -> Result<(RangeImage, RenderStats)> {
-    let q = args
-        .quality
-        .map(|q| Quality::new(q).context("--quality"))
-        .transpose()?;
+    let q = args.quality;
     let (simplified, series) = match &args.bake {
-        Some(dir) if dir.join(radiosity_store::MANIFEST).exists() => load_bake(s, dir, q)?,
+        Some(dir) if dir.join(radiosity_store::MANIFEST).exists() => {
+            load_bake(s, dir, q).context("--bake")?
+        }
         bake_dir => {
-            let q = q.unwrap_or(Quality::new(radiosity::DEFAULT_QUALITY)?);
+            let q = q.unwrap_or(Quality::DEFAULT);
             let (simplified, series) = radiosity::simplify_and_decompose(s, engine, q)?;
             if let Some(dir) = bake_dir {
                 radiosity_store::save(dir, s, &simplified, &series)?;

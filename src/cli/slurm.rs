@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use rangewalk::bake::{self, slurm};
 use rangewalk::image;
-use rangewalk::radiosity::Quality;
+use rangewalk::quality::Quality;
 
 use super::bake_options::BakeOptions;
 use super::load;
@@ -16,7 +16,7 @@ pub struct SlurmArgs {
     scene: PathBuf,
     /// Quality in [0, 1] of every stage: views, times, radiosity.
     #[arg(long)]
-    quality: f32,
+    quality: Quality,
     /// Bake directory, on a filesystem every node sees; the job scripts go
     /// into its `slurm/` folder.
     #[arg(long)]
@@ -43,7 +43,7 @@ pub struct SlurmArgs {
 /// `rangewalk slurm`: the job scripts of a distributed bake, submitted or
 /// with the commands that submit them.
 pub fn run(a: SlurmArgs) -> Result<()> {
-    let quality = Quality::new(a.quality).context("--quality")?;
+    let quality = a.quality;
     image::check_output_dir("--out", &a.out)?;
     let s = load(&a.scene)?;
     let (settings, sampling, why) = a.options.settings(&s, quality)?;

@@ -16,7 +16,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::accel::{InstancedEngine, RayEngine};
-use crate::radiosity::Quality;
+use crate::quality::Quality;
 use crate::scene::Scene;
 
 pub mod coverage;

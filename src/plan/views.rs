@@ -66,16 +66,7 @@ struct Lattice {
 
 impl Lattice {
     fn new(space: &ViewSpace) -> Self {
-        let (origin, axes) = match *space {
-            ViewSpace::Segment { a, b } => (a, vec![b - a]),
-            ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max } => {
-                let d = max - min;
-                let axes = [Vec3::X * d.x, Vec3::Y * d.y, Vec3::Z * d.z];
-                (min, axes.to_vec())
-            }
-        };
-        // A rectangle's zero extent (or any degenerate side) is no axis.
-        let axes: Vec<Vec3> = axes.into_iter().filter(|a| *a != Vec3::ZERO).collect();
+        let (origin, axes) = space.edges();
         let depth = max_depth(axes.len());
         Self {
             origin,

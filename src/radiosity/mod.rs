@@ -16,10 +16,11 @@
 
 use std::collections::HashMap;
 
-use anyhow::{ensure, Result};
+use anyhow::Result;
 use glam::Vec3;
 
 use crate::bsdf::Lobes;
+use crate::quality::Quality;
 use crate::scene::{Bsdf, Scene};
 
 pub mod formfactor;
@@ -42,26 +43,6 @@ pub fn simplify_and_decompose(
     let simplified = simplify(scene, engine, q)?;
     let series = temporal::decompose(scene, &simplified, engine, q)?;
     Ok((simplified, series))
-}
-
-/// The user's quality `q ∈ [0, 1]`: every subdivision decision of the
-/// object-space stages follows from it (higher is finer and slower).
-#[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
-pub struct Quality(f32);
-
-/// The quality of the radiosity stages where none is given (`rangewalk
-/// radiosity`, `render --indirect radiosity`, the C ABI's bake).
-pub const DEFAULT_QUALITY: f32 = 0.5;
-
-impl Quality {
-    pub fn new(q: f32) -> Result<Self> {
-        ensure!((0.0..=1.0).contains(&q), "quality {q} is outside [0, 1]");
-        Ok(Self(q))
-    }
-
-    pub fn get(self) -> f32 {
-        self.0
-    }
 }
 
 /// One planar triangle of the simplified scene, in its object's space.

@@ -52,7 +52,7 @@ struct Manifest {
     version: u32,
     /// The scene the bake was made from, as given when it was made.
     scene: PathBuf,
-    quality: f32,
+    quality: Quality,
     times: Vec<f32>,
     /// The scene's content when the bake was made: a bake is only used for
     /// the scene it was solved for.
@@ -125,7 +125,7 @@ struct FileEntry {
 #[derive(Clone, Debug, PartialEq)]
 pub struct BakeInfo {
     pub scene: PathBuf,
-    pub quality: f32,
+    pub quality: Quality,
     pub scene_hash: ContentHash,
 }
 
@@ -215,12 +215,11 @@ pub fn load_for(
         scene.source.display(),
         changes.join(", ")
     );
-    if let Some(q) = quality.filter(|q| q.get() != info.quality) {
+    if let Some(q) = quality.filter(|&q| q != info.quality) {
         bail!(
-            "{} was baked at quality {}, not {}: pass --quality {} or another bake directory",
+            "{} was baked at quality {}, not {q}: ask for quality {} or use another bake directory",
             dir.display(),
             info.quality,
-            q.get(),
             info.quality
         );
     }

@@ -38,7 +38,7 @@ pub struct TimeSeries {
     pub times: Vec<f32>,
     pub solutions: Vec<IndirectSolution>,
     /// The quality the decomposition was made for.
-    pub quality: f32,
+    pub quality: Quality,
     pub stats: DecomposeStats,
 }
 
@@ -212,7 +212,7 @@ where
     Ok(TimeSeries {
         times: solutions.iter().map(|s| s.time).collect(),
         solutions,
-        quality: quality.get(),
+        quality,
         stats,
     })
 }

@@ -268,6 +268,81 @@ impl ViewSpace {
             ViewSpace::Box { .. } => 3,
         }
     }
+
+    /// The point of the space nearest to `p`: where a viewer who tries to
+    /// leave it stops.
+    pub fn clamp(&self, p: Vec3) -> Vec3 {
+        match *self {
+            ViewSpace::Segment { a, b } => {
+                let ab = b - a;
+                let len2 = ab.length_squared();
+                if len2 == 0.0 {
+                    return a;
+                }
+                a + ab * ((p - a).dot(ab) / len2).clamp(0.0, 1.0)
+            }
+            ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max } => p.clamp(min, max),
+        }
+    }
+
+    /// Whether `p` lies in the space, up to [`Self::SLACK`] of its extent:
+    /// positions computed on the space's boundary (a path's keys, a
+    /// lattice point) land a rounding error outside it.
+    pub fn contains(&self, p: Vec3) -> bool {
+        p.distance(self.clamp(p)) <= Self::SLACK * self.extent().max(1e-12)
+    }
+
+    /// How far outside the space [`Self::contains`] still counts as in,
+    /// relative to the space's extent.
+    pub const SLACK: f32 = 1e-4;
+
+    /// The longest side: the segment's length, the box's largest edge.
+    pub fn extent(&self) -> f32 {
+        match *self {
+            ViewSpace::Segment { a, b } => (b - a).length(),
+            ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max } => {
+                (max - min).max_element()
+            }
+        }
+    }
+
+    /// The lowest and highest corner of the axis-aligned box around the
+    /// space.
+    pub fn corners(&self) -> (Vec3, Vec3) {
+        match *self {
+            ViewSpace::Segment { a, b } => (a.min(b), a.max(b)),
+            ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max } => (min, max),
+        }
+    }
+
+    /// The space as an origin and the edges that span it from there; a
+    /// zero edge (the flat side of a rectangle, a degenerate box) is left
+    /// out, so there are as many edges as the space has dimensions.
+    pub fn edges(&self) -> (Vec3, Vec<Vec3>) {
+        let (origin, edges) = match *self {
+            ViewSpace::Segment { a, b } => (a, vec![b - a]),
+            ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max } => {
+                let d = max - min;
+                (min, vec![Vec3::X * d.x, Vec3::Y * d.y, Vec3::Z * d.z])
+            }
+        };
+        (
+            origin,
+            edges.into_iter().filter(|e| *e != Vec3::ZERO).collect(),
+        )
+    }
+
+    /// A uniformly distributed point of the space, from numbers uniform in
+    /// `[0, 1)` drawn from `next`: one for a segment, three (x, y, z) for a
+    /// rectangle or box.
+    pub fn sample(&self, mut next: impl FnMut() -> f32) -> Vec3 {
+        match *self {
+            ViewSpace::Segment { a, b } => a.lerp(b, next()),
+            ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max } => {
+                min + (max - min) * Vec3::new(next(), next(), next())
+            }
+        }
+    }
 }
 
 /// A segment view space written `x,y,z:x,y,z` (the `--view-segment` of
@@ -459,6 +534,57 @@ impl Scene {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_view_space_clamps_contains_and_samples_its_own_points() {
+        let seg = ViewSpace::Segment {
+            a: Vec3::new(0.0, 1.0, 0.0),
+            b: Vec3::new(4.0, 1.0, 0.0),
+        };
+        let rect = ViewSpace::Rectangle {
+            min: Vec3::new(-1.0, 1.0, -2.0),
+            max: Vec3::new(1.0, 1.0, 2.0),
+        };
+        let bx = ViewSpace::Box {
+            min: Vec3::ZERO,
+            max: Vec3::new(1.0, 2.0, 3.0),
+        };
+        // Nearest points: onto the segment's line within its ends, into the box.
+        assert_eq!(
+            seg.clamp(Vec3::new(2.0, 5.0, 3.0)),
+            Vec3::new(2.0, 1.0, 0.0)
+        );
+        assert_eq!(
+            seg.clamp(Vec3::new(-3.0, 1.0, 0.0)),
+            Vec3::new(0.0, 1.0, 0.0)
+        );
+        assert_eq!(
+            rect.clamp(Vec3::new(5.0, 0.0, 0.0)),
+            Vec3::new(1.0, 1.0, 0.0)
+        );
+        assert_eq!((seg.extent(), rect.extent(), bx.extent()), (4.0, 4.0, 3.0));
+        assert_eq!(
+            seg.corners(),
+            (Vec3::new(0.0, 1.0, 0.0), Vec3::new(4.0, 1.0, 0.0))
+        );
+        // As many edges as dimensions: the rectangle's flat y is none.
+        for s in [seg, rect, bx] {
+            assert_eq!(s.edges().1.len(), s.dimensions(), "{s:?}");
+        }
+        // Inside, on the boundary and a rounding error beyond it count; a
+        // step of a thousandth of the extent outside does not.
+        assert!(seg.contains(Vec3::new(4.0, 1.0, 0.0)));
+        assert!(seg.contains(Vec3::new(4.0 + 1e-5, 1.0, 0.0)));
+        assert!(!seg.contains(Vec3::new(4.0 + 4e-3, 1.0, 0.0)));
+        assert!(!rect.contains(Vec3::new(0.0, 1.01, 0.0)));
+        let mut u = [0.25f32, 0.5, 0.75].into_iter().cycle();
+        for s in [seg, rect, bx] {
+            let p = s.sample(|| u.next().unwrap());
+            assert!(s.contains(p), "{s:?}: {p}");
+        }
+        // One number for a segment: at 0.25 of the way from a.
+        assert_eq!(seg.sample(|| 0.25), Vec3::new(1.0, 1.0, 0.0));
+    }
 
     #[test]
     fn a_point_light_arrives_as_intensity_over_distance_squared_with_a_shadow_ray_to_it() {

@@ -808,7 +808,7 @@ mod tests {
             ..Plan::default()
         };
         let settings = Settings {
-            quality: 0.6,
+            quality: crate::quality::Quality::new(0.6).unwrap(),
             size: 192,
             spp: 1,
             projection: BaseProjection::Sphere,

@@ -541,14 +541,7 @@ fn start_pose(scene: &Scene, name: Option<&str>) -> Result<CameraDesc> {
 /// A quarter of the view space's longest side per second, so crossing it
 /// takes a few seconds; without a view space, a tenth of the scene's.
 fn default_speed(scene: &Scene) -> f32 {
-    use crate::scene::ViewSpace;
-    let extent = match scene.view_space {
-        Some(ViewSpace::Segment { a, b }) => (b - a).length(),
-        Some(ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max }) => {
-            (max - min).max_element()
-        }
-        None => 0.0,
-    };
+    let extent = scene.view_space.map_or(0.0, |s| s.extent());
     if extent > 0.0 {
         extent / 4.0
     } else {

@@ -262,20 +262,7 @@ impl Walker {
 
     /// The point of the view space nearest `p` (`p` itself without one).
     pub fn clamp(&self, p: Vec3) -> Vec3 {
-        match self.space {
-            None => p,
-            Some(ViewSpace::Segment { a, b }) => {
-                let ab = b - a;
-                let len2 = ab.length_squared();
-                if len2 == 0.0 {
-                    return a;
-                }
-                a + ab * ((p - a).dot(ab) / len2).clamp(0.0, 1.0)
-            }
-            Some(ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max }) => {
-                p.clamp(min, max)
-            }
-        }
+        self.space.map_or(p, |s| s.clamp(p))
     }
 
     /// `d` turned by `yaw` about the world's up and raised by `pitch`, its

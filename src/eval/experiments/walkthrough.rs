@@ -709,7 +709,7 @@ mod tests {
             args: WalkthroughArgs {
                 common: CommonArgs {
                     scene: "scenes/cornell-box/scene.toml".into(),
-                    quality: vec![0.3],
+                    quality: vec![crate::quality::Quality::new(0.3).unwrap()],
                     out: "out".into(),
                     size: (2, 2),
                     reference_spp: 256,

@@ -67,7 +67,7 @@ pub fn count_hits(
                 let view = (trial * views + v) as u64;
                 let mut rng = Rng::new(SEED ^ 0xa5a5, view);
                 let (origin, axis, cos_max) = match &viewer {
-                    Viewer::Space(s) => (point_in(s, &mut rng), Vec3::Z, -1.0),
+                    Viewer::Space(s) => (s.sample(|| rng.next()), Vec3::Z, -1.0),
                     Viewer::Cameras(c) => {
                         let cam = &c[view as usize % c.len()];
                         (
@@ -101,16 +101,6 @@ pub fn count_hits(
         hits,
         rays: per_view * (trials * views) as u64,
     }))
-}
-
-/// A uniform point of the view space.
-fn point_in(space: &ViewSpace, rng: &mut Rng) -> Vec3 {
-    match *space {
-        ViewSpace::Segment { a, b } => a.lerp(b, rng.next()),
-        ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max } => {
-            min + (max - min) * Vec3::new(rng.next(), rng.next(), rng.next())
-        }
-    }
 }
 
 /// A uniform direction in the cone `dot(d, axis) >= cos_max` (the whole

@@ -21,7 +21,7 @@ use crate::bake::{self};
 use crate::eval::reference::{self, Reference};
 use crate::eval::sheet::{exposure_for, write_strip};
 use crate::plan::Plan;
-use crate::radiosity::Quality;
+use crate::quality::Quality;
 use crate::scene::Scene;
 use crate::synth::{Blend, Options, TimeInterp};
 

@@ -14,7 +14,7 @@ use crate::camera::Camera;
 use crate::eval::flip::Flip;
 use crate::eval::reference::{self, Reference};
 use crate::plan::{self, Plan, PlanOptions, ViewFitness};
-use crate::radiosity::Quality;
+use crate::quality::Quality;
 use crate::scene::hash::ContentHash;
 use crate::scene::Scene;
 use crate::synth::{self, Blend, Fill, TimeInterp};
@@ -33,7 +33,7 @@ pub struct CommonArgs {
     pub scene: PathBuf,
     /// Qualities to measure, comma-separated, each in [0, 1]; the same
     /// quality drives every stage (plan, radiosity).
-    pub quality: Vec<f32>,
+    pub quality: Vec<Quality>,
     /// Output folder (written as `<out>.partial`, renamed when complete);
     /// the bakes and references in it are reused by a rerun.
     pub out: PathBuf,
@@ -107,11 +107,7 @@ impl CommonArgs {
     pub fn setup(&self) -> Result<Setup> {
         crate::image::check_output_dir("--out", &self.out)?;
         ensure!(!self.quality.is_empty(), "--quality names no quality");
-        let qualities = self
-            .quality
-            .iter()
-            .map(|&q| Quality::new(q).with_context(|| format!("--quality {q}")))
-            .collect::<Result<Vec<_>>>()?;
+        let qualities = self.quality.clone();
         ensure!(self.base_spp > 0, "--base-spp must be at least 1");
         ensure!(self.reference_spp > 0, "--reference-spp must be at least 1");
         ensure!(
@@ -172,7 +168,7 @@ impl CommonArgs {
     /// the experiments' sample counts are the ones their reports state.
     pub fn bake_settings(&self, q: Quality, base_size: u32) -> bake::Settings {
         bake::Settings {
-            quality: q.get(),
+            quality: q,
             size: base_size,
             spp: self.base_spp,
             projection: BaseProjection::Sphere,

@@ -29,8 +29,9 @@ use crate::eval::experiments::common::synthesize::flip_means;
 use crate::eval::flip::Flip;
 use crate::eval::metrics::{self, ImageError, Pixels};
 use crate::eval::reference::{self, Reference};
+use crate::quality::Quality;
 use crate::radiosity::lookup::IrradianceCache;
-use crate::radiosity::{self, temporal, Quality, SimplifyStats, SolveStats};
+use crate::radiosity::{self, temporal, SimplifyStats, SolveStats};
 use crate::render::{multipass, RenderSettings};
 use crate::scene::Scene;
 
@@ -38,8 +39,8 @@ use crate::scene::Scene;
 #[derive(Clone, Debug)]
 pub struct IndirectArgs {
     pub scene: PathBuf,
-    /// Qualities to measure, comma-separated, each in [0, 1].
-    pub quality: Vec<f32>,
+    /// Qualities to measure, comma-separated.
+    pub quality: Vec<Quality>,
     /// Output folder (written as `<out>.partial`, renamed when complete).
     pub out: PathBuf,
     /// Frames spread evenly over the animation, both ends included
@@ -155,11 +156,7 @@ pub struct IndirectResults {
 pub fn run_indirect(args: &IndirectArgs) -> Result<IndirectResults> {
     crate::image::check_output_dir("--out", &args.out)?;
     ensure!(!args.quality.is_empty(), "--quality names no quality");
-    let qualities = args
-        .quality
-        .iter()
-        .map(|&q| Quality::new(q).with_context(|| format!("--quality {q}")))
-        .collect::<Result<Vec<_>>>()?;
+    let qualities = args.quality.clone();
     ensure!(args.spp > 0, "--spp must be at least 1");
     ensure!(args.reference_spp > 0, "--reference-spp must be at least 1");
     ensure!(args.frames != Some(0), "--frames must be at least 1");

@@ -18,6 +18,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use rangewalk::accel::{self, Backend};
 use rangewalk::bake::{self, BaseProjection, IndirectSource, Settings, Shard};
 use rangewalk::plan::{Plan, PlannedView};
+use rangewalk::quality::Quality;
 use rangewalk::render::{self, RenderSettings};
 use rangewalk::scene::Scene;
 use rangewalk::synth::walk::{self, WalkSettings};
@@ -54,7 +55,7 @@ fn walk_against_path_tracing(c: &mut Criterion) {
         None => temporary.path().join("bake"),
     };
     let settings = Settings {
-        quality: 0.6,
+        quality: Quality::new(0.6).expect("quality"),
         size: 2544,
         spp: 1,
         projection: BaseProjection::Sphere,

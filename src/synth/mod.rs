@@ -20,7 +20,7 @@ use crate::alloc;
 use crate::bake::Bake;
 use crate::camera::Camera;
 use crate::image::{RangeImage, RangeMeta};
-use crate::scene::{Scene, ViewSpace};
+use crate::scene::Scene;
 
 pub mod base;
 mod cells;
@@ -723,27 +723,10 @@ impl<'a> Synthesizer<'a> {
     }
 }
 
-/// Whether `position` lies in the view space (with a relative slack for
-/// rounding).
-pub fn inside_view_space(space: &ViewSpace, position: Vec3) -> bool {
-    let slack = 1e-4;
-    match *space {
-        ViewSpace::Segment { a, b } => {
-            let ab = b - a;
-            let s = ((position - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
-            position.distance(a + ab * s) <= slack * ab.length().max(1e-12)
-        }
-        ViewSpace::Rectangle { min, max } | ViewSpace::Box { min, max } => {
-            let pad = (max - min).max_element() * slack;
-            position.cmpge(min - pad).all() && position.cmple(max + pad).all()
-        }
-    }
-}
-
 /// The warning for a camera outside the view space, if it is.
 pub fn view_space_warning(scene: &Scene, what: &str, position: Vec3) -> Option<String> {
     let space = scene.view_space.as_ref()?;
-    (!inside_view_space(space, position)).then(|| {
+    (!space.contains(position)).then(|| {
         format!(
             "warning: {what} at {position} is outside the scene's view space; \
              expect holes and stretched surfaces where the bases saw too little"

@@ -760,11 +760,11 @@ pub fn check_bake(bake: &Bake) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
-
     use super::*;
     use crate::accel::Backend;
     use crate::bake::{self, BaseProjection, IndirectSource, Settings, Shard};
     use crate::plan::{Plan, PlannedView};
+    use crate::scene::ViewSpace;
 
     fn cornell_box() -> Scene {
         let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))

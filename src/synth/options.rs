@@ -4,7 +4,6 @@
 
 use anyhow::{ensure, Result};
 
-use super::warp::{self, Accum};
 use crate::alloc;
 
 #[derive(
@@ -174,9 +173,13 @@ pub const MAX_LIGHT_RAYS: u32 = 32;
 pub const MAX_RESHADE_SAMPLES: u32 = 256;
 
 /// The most base views a frame projects: each gives a pass per base time
-/// it takes (two at most), and a z-buffer entry names its pass in
-/// [`warp::MAX_PASSES`].
-pub const MAX_BASES: usize = warp::MAX_PASSES / 2;
+/// it takes (two at most), and a z-buffer entry names its pass in 12 bits
+/// (the projection checks that they hold twice this many).
+pub const MAX_BASES: usize = 2048;
+
+/// Bytes of a subpixel's z-buffer entry (the projection checks it), for
+/// saying how much memory a frame asks for.
+pub const SUBPIXEL_BYTES: u64 = 48;
 
 /// The most subpixels a frame is synthesized at: the pixels a range image
 /// may hold ([`crate::image::MAX_PIXELS`], 8192²). A subpixel's z-buffer
@@ -243,7 +246,7 @@ impl Options {
              {MAX_SUBPIXELS} (8192x8192) a frame may be synthesized at (about {} of z-buffer); \
              make the frame or {} smaller",
             name("supersample"),
-            alloc::bytes(n.saturating_mul(size_of::<Accum>() as u64)),
+            alloc::bytes(n.saturating_mul(SUBPIXEL_BYTES)),
             name("supersample")
         );
         Ok(())

@@ -80,7 +80,9 @@ struct Hot {
 /// Bits of a [`Hot`]'s tag that name the pass.
 const PASS_BITS: u32 = 12;
 /// Most passes one frame may project.
-pub const MAX_PASSES: usize = 1 << PASS_BITS;
+const MAX_PASSES: usize = 1 << PASS_BITS;
+const _: () = assert!(MAX_PASSES >= 2 * super::options::MAX_BASES);
+const _: () = assert!(size_of::<Accum>() as u64 == super::options::SUBPIXEL_BYTES);
 
 /// A sample's tag: its pass and (as many low bits of it as fit) its object.
 fn tag(pass: u32, object: u32) -> u32 {

@@ -23,6 +23,7 @@ use rayon::prelude::*;
 
 use crate::bake::Bake;
 use crate::camera::Camera;
+use crate::image::planes_file::BasePlanes;
 use crate::image::{RangeImage, NO_HIT};
 use crate::scene::Scene;
 
@@ -227,9 +228,62 @@ pub fn from_half(c: &[f16; 3]) -> Vec3 {
     )
 }
 
+/// Checks that `object_id` names the scene's objects.
+fn check_ids(scene: &Scene, image: usize, object_id: &[u32]) -> Result<()> {
+    for &o in object_id {
+        ensure!(
+            o == NO_HIT || (o as usize) < scene.objects.len(),
+            "base image {image}: object id {o}, but the scene has {} objects",
+            scene.objects.len()
+        );
+    }
+    Ok(())
+}
+
+/// What a base keeps of manifest image `image`'s range image: its radiance
+/// unmixed beside the scene's lights and scaled into half floats, its
+/// distances and ids. The bake writes this to the image's planes file
+/// (version 3), and [`Base::new`] makes a base of it, so that a base read
+/// from its planes file and one made from its EXR are the same bit for bit;
+/// a change to what it computes must move the planes file's version
+/// (`image::planes_file::VERSION`), or older bakes would read otherwise.
+pub fn base_planes(scene: &Scene, image: usize, mut img: RangeImage) -> Result<BasePlanes> {
+    check_ids(scene, image, &img.object_id)?;
+    super::lights::unmix_beside_lights(scene, &mut img);
+    let brightest = img
+        .radiance
+        .par_iter()
+        .map(|c| if c.is_finite() { c.max_element() } else { 0.0 })
+        .reduce(|| 0.0, f32::max);
+    // Half floats reach 65504; keep a factor two of headroom.
+    let scale = if brightest > 0.0 {
+        2f32.powi((brightest / 32768.0).log2().ceil() as i32)
+    } else {
+        1.0
+    };
+    let inv = 1.0 / scale;
+    let radiance = img.radiance.par_iter().map(|&c| to_half(c, inv)).collect();
+    Ok(BasePlanes {
+        width: img.width,
+        height: img.height,
+        radiance,
+        scale,
+        distance: img.distance,
+        object_id: img.object_id,
+        primitive_id: img.primitive_id,
+        meta: img.meta,
+    })
+}
+
 impl Base {
     /// Prepares manifest image `image` of view `view` from the range image.
-    pub fn new(scene: &Scene, image: usize, view: usize, mut img: RangeImage) -> Result<Base> {
+    pub fn new(scene: &Scene, image: usize, view: usize, img: RangeImage) -> Result<Base> {
+        Base::from_planes(scene, image, view, base_planes(scene, image, img)?)
+    }
+
+    /// Prepares manifest image `image` of view `view` from what a base
+    /// keeps of it ([`base_planes`], or its planes file).
+    pub fn from_planes(scene: &Scene, image: usize, view: usize, img: BasePlanes) -> Result<Base> {
         let n = img.len();
         let camera = img.meta.camera;
         ensure!(
@@ -240,26 +294,7 @@ impl Base {
             img.width,
             img.height
         );
-        for &o in &img.object_id {
-            ensure!(
-                o == NO_HIT || (o as usize) < scene.objects.len(),
-                "base image {image}: object id {o}, but the scene has {} objects",
-                scene.objects.len()
-            );
-        }
-        super::lights::unmix_beside_lights(scene, &mut img);
-        let brightest = img
-            .radiance
-            .par_iter()
-            .map(|c| if c.is_finite() { c.max_element() } else { 0.0 })
-            .reduce(|| 0.0, f32::max);
-        // Half floats reach 65504; keep a factor two of headroom.
-        let scale = if brightest > 0.0 {
-            2f32.powi((brightest / 32768.0).log2().ceil() as i32)
-        } else {
-            1.0
-        };
-        let inv = 1.0 / scale;
+        check_ids(scene, image, &img.object_id)?;
         let w = img.width as usize;
         let points: Vec<Vec3> = (0..n)
             .into_par_iter()
@@ -272,7 +307,6 @@ impl Base {
                 }
             })
             .collect();
-        let radiance = img.radiance.par_iter().map(|&c| to_half(c, inv)).collect();
         let moving: Vec<bool> = scene
             .objects
             .iter()
@@ -288,8 +322,8 @@ impl Base {
             points,
             object: img.object_id,
             primitive: img.primitive_id,
-            radiance,
-            scale,
+            radiance: img.radiance,
+            scale: img.scale,
             tiles,
             blocks,
         })
@@ -487,8 +521,12 @@ impl BaseCache {
             .get(k)
             .map(|e| e.view)
             .unwrap_or_default();
-        let image = bake.read_range(k)?;
-        let base = Arc::new(Base::new(scene, k, view, image)?);
+        let base = if bake.manifest.has_base_planes() {
+            Base::from_planes(scene, k, view, bake.read_base(k)?)?
+        } else {
+            Base::new(scene, k, view, bake.read_range(k)?)?
+        };
+        let base = Arc::new(base);
         self.load_seconds += start.elapsed().as_secs_f64();
         self.loads += 1;
         while !self.held.is_empty() && self.bytes() + base.bytes() > self.budget {

@@ -759,7 +759,8 @@ fn bake_and_version_5_copy(scene: &Scene, dir: &Path) -> (bake::Bake, bake::Bake
 #[test]
 fn planes_files_read_as_their_exrs_and_make_the_same_frames_bit_for_bit() {
     use rangewalk::image::planes_file;
-    use rangewalk::synth::{base_planes, Options, Synthesizer, DEFAULT_BUDGET};
+    use rangewalk::image::planes_file::BasePlanes;
+    use rangewalk::synth::{Options, Synthesizer, DEFAULT_BUDGET};
     let scene = load(&scene_path("cornell-box"));
     let tmp = tempfile::tempdir().unwrap();
     let (new, old) = bake_and_version_5_copy(&scene, tmp.path());
@@ -781,7 +782,7 @@ fn planes_files_read_as_their_exrs_and_make_the_same_frames_bit_for_bit() {
         assert!(exr.meta.camera.window.is_some(), "image {k} is not cropped");
         assert_eq!(
             new.read_base(k).unwrap(),
-            base_planes(&scene, k, exr.clone()).unwrap(),
+            BasePlanes::of(exr.clone()),
             "image {k}"
         );
         assert_eq!(new.read_range(k).unwrap(), exr, "image {k}");
@@ -848,8 +849,8 @@ fn a_damaged_missing_or_foreign_planes_file_is_named_when_read_and_rendered_agai
     };
     let name = |k: usize| planes(k).display().to_string();
 
-    // A flipped bit in the last pixel's primitive id: the last chunk of
-    // the last plane.
+    // A flipped bit in the last pixel's normal: the last chunk of the
+    // last plane.
     let mut bytes = before[0].clone();
     *bytes.last_mut().unwrap() ^= 1;
     std::fs::write(planes(0), &bytes).unwrap();
@@ -859,7 +860,7 @@ fn a_damaged_missing_or_foreign_planes_file_is_named_when_read_and_rendered_agai
         &error(0),
         &[
             &name(0),
-            &format!("chunk {last} of plane `primitive_id`"),
+            &format!("chunk {last} of plane `normal`"),
             "damaged",
             "run the bake again",
         ],

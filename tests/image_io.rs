@@ -707,6 +707,7 @@ fn a_version_3_planes_file_round_trips_a_base_bit_for_bit_and_names_the_damaged_
         distance: image.distance,
         object_id: image.object_id,
         primitive_id: image.primitive_id,
+        normal: image.normal,
         meta: image.meta,
     };
     for projection in PROJECTIONS {

@@ -431,7 +431,6 @@ pub fn run_observed(
             let (stats, report) = render_image(
                 scene,
                 &manifest,
-                k,
                 &e,
                 settings,
                 sampling,
@@ -800,7 +799,6 @@ fn radiosity_stage(
 fn render_image(
     scene: &Scene,
     manifest: &Manifest,
-    k: usize,
     e: &ImageEntry,
     settings: &Settings,
     sampling: &Sampling,
@@ -861,7 +859,7 @@ fn render_image(
     // never be read), before version 8 from range images' planes files.
     let planes = manifest::planes_path(&path);
     if manifest.has_base_planes() {
-        let base = crate::synth::base_planes(scene, k, out.image)?;
+        let base = image::planes_file::BasePlanes::of(out.image);
         image::planes_file::write_base(&planes, &base, &manifest::hex(sum))?;
     } else if manifest.has_planes() {
         image::planes_file::write(&planes, &out.image, &manifest::hex(sum))?;
@@ -936,7 +934,7 @@ impl Bake {
         })
     }
 
-    /// What synthesis keeps of image `k` (`synth::base_planes`), read from
+    /// What synthesis reads of image `k` (`BasePlanes::of` its range image), read from
     /// its planes file, each chunk checked as it is read; only bakes of
     /// version 8 on have such planes files.
     pub fn read_base(&self, k: usize) -> Result<image::planes_file::BasePlanes> {

@@ -4,9 +4,9 @@
 //! them) took most of a second for a 2,544² sphere's window, while reading
 //! this file takes tens of milliseconds.
 //!
-//! The file (version 3) holds a base's planes ([`BasePlanes`]: radiance as
-//! scaled half floats, distance, object and primitive ids; not the normals
-//! nor the light layers, which a base does not keep), each plane cut into
+//! The file (version 3) holds what a base reads ([`BasePlanes`]: radiance
+//! as scaled half floats, distance, object and primitive ids, normals; not
+//! the light layers, which re-shading does not read), each plane cut into
 //! chunks of [`CHUNK`] pixels. A chunk is its pixels' little-endian words
 //! (2 bytes for half floats, else 4) with their bytes regrouped (every
 //! word's first byte, then every second byte, ...: the sign and exponent
@@ -24,7 +24,7 @@
 //! ```text
 //! "RWPLANES"  u32 LE header length L  header (JSON, L bytes)  FNV-1a 64 of the header (16 hex digits)
 //! the chunks of plane 0 (radiance_half, 3 half floats a pixel), then of plane 1 (distance),
-//! 2 (object_id), 3 (primitive_id), each as long as the header says
+//! 2 (object_id), 3 (primitive_id), 4 (normal, 3), each as long as the header says
 //! ```
 //!
 //! Versions 1 and 2 (bakes of manifest versions 6 and 7) hold the range
@@ -77,11 +77,12 @@ const PLANES: [(&str, usize); 5] = [
 /// The planes of version 3 in file order, with their words per pixel:
 /// what synthesis keeps of a base, radiance as half floats (16-bit words),
 /// the rest 32-bit words.
-const BASE_PLANES: [(&str, usize); 4] = [
+const BASE_PLANES: [(&str, usize); 5] = [
     ("radiance_half", 3),
     ("distance", 1),
     ("object_id", 1),
     ("primitive_id", 1),
+    ("normal", 3),
 ];
 
 /// Bytes of a word of plane `p` in a file of `version`.
@@ -101,10 +102,12 @@ fn layout(version: u32) -> &'static [(&'static str, usize)] {
     }
 }
 
-/// What synthesis keeps of a base image (`synth::Base`), as a version-3
-/// planes file holds it: radiance already unmixed beside the lights and
-/// divided by `scale` into half floats, each pixel's distance and ids. A
-/// base is made from it without the image's normals or its 32-bit radiance.
+/// What synthesis reads of a base image (`synth::Base`), as a version-3
+/// planes file holds it: radiance divided by `scale` into half floats, as
+/// the base keeps it, each pixel's distance, ids and normal (synthesis
+/// re-lights pixels beside the lights from neighbours of like normal). A
+/// base made from the EXR goes through [`BasePlanes::of`] too, so both are
+/// the same bit for bit.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BasePlanes {
     pub width: u32,
@@ -116,10 +119,57 @@ pub struct BasePlanes {
     pub distance: Vec<f32>,
     pub object_id: Vec<u32>,
     pub primitive_id: Vec<u32>,
+    pub normal: Vec<Vec3>,
     pub meta: RangeMeta,
 }
 
+/// A power of two that brings the brightest finite radiance within
+/// half-float range (which reaches 65504), with a factor two of headroom,
+/// whatever the scene's intensities. Version-3 planes files hold halves
+/// made with it: a change to it must move [`VERSION`], or their bases
+/// would differ from their EXRs'.
+pub fn radiance_scale(radiance: &[Vec3]) -> f32 {
+    let brightest = radiance
+        .par_iter()
+        .map(|c| if c.is_finite() { c.max_element() } else { 0.0 })
+        .reduce(|| 0.0, f32::max);
+    if brightest > 0.0 {
+        2f32.powi((brightest / 32768.0).log2().ceil() as i32)
+    } else {
+        1.0
+    }
+}
+
+/// Radiance `c` times `inv_scale` in half floats, negative values as zero.
+pub fn to_half(c: Vec3, inv_scale: f32) -> [f16; 3] {
+    let c = (c * inv_scale).max(Vec3::ZERO);
+    [f16::from_f32(c.x), f16::from_f32(c.y), f16::from_f32(c.z)]
+}
+
 impl BasePlanes {
+    /// What a base reads of `image`: its radiance scaled
+    /// ([`radiance_scale`]) into half floats, the rest as it is.
+    pub fn of(image: RangeImage) -> BasePlanes {
+        let scale = radiance_scale(&image.radiance);
+        let inv = 1.0 / scale;
+        let radiance = image
+            .radiance
+            .par_iter()
+            .map(|&c| to_half(c, inv))
+            .collect();
+        BasePlanes {
+            width: image.width,
+            height: image.height,
+            radiance,
+            scale,
+            distance: image.distance,
+            object_id: image.object_id,
+            primitive_id: image.primitive_id,
+            normal: image.normal,
+            meta: image.meta,
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.width as usize * self.height as usize
     }
@@ -315,6 +365,7 @@ pub fn write_base(path: &Path, base: &BasePlanes, image_sum: &str) -> Result<()>
         base.distance.len(),
         base.object_id.len(),
         base.primitive_id.len(),
+        base.normal.len(),
     ];
     ensure!(
         n > 0 && lens.iter().all(|&l| l == n),
@@ -343,9 +394,13 @@ pub fn write_base(path: &Path, base: &BasePlanes, image_sum: &str) -> Result<()>
             2 => base.object_id[r]
                 .iter()
                 .for_each(|o| out.extend_from_slice(&o.to_le_bytes())),
-            _ => base.primitive_id[r]
+            3 => base.primitive_id[r]
                 .iter()
                 .for_each(|o| out.extend_from_slice(&o.to_le_bytes())),
+            _ => base.normal[r]
+                .iter()
+                .flat_map(|n| n.to_array())
+                .for_each(|x| out.extend_from_slice(&x.to_bits().to_le_bytes())),
         }
         out
     })
@@ -639,6 +694,11 @@ impl PlanesFile {
         let distance = self.read_plane(1, |b| f32::from_bits(word(b)))?;
         let object_id = self.read_plane(2, word)?;
         let primitive_id = self.read_plane(3, word)?;
+        let vec3s = |b: &[u8]| {
+            let w = |i: usize| f32::from_le_bytes(b[i..i + 4].try_into().expect("4 bytes"));
+            Vec3::new(w(0), w(4), w(8))
+        };
+        let normal = self.read_plane(4, vec3s)?;
         Ok(BasePlanes {
             width: self.header.width,
             height: self.header.height,
@@ -647,6 +707,7 @@ impl PlanesFile {
             distance,
             object_id,
             primitive_id,
+            normal,
             meta,
         })
     }

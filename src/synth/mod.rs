@@ -33,7 +33,7 @@ mod reshade;
 pub mod walk;
 mod warp;
 
-pub use base::{base_planes, Base, BaseCache, BYTES_PER_PIXEL};
+pub use base::{Base, BaseCache, BYTES_PER_PIXEL};
 use indirect::Records;
 pub use options::{
     Blend, Fill, Filter, Options, TimeInterp, TimePlan, MAX_BASES, MAX_LIGHT_RAYS,

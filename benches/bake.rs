@@ -140,7 +140,12 @@ fn open(c: &mut Criterion) {
     .expect("writing the EXR");
     let planes = dir.path().join("base.exr.planes");
     let sum = rangewalk::checksum::hex(sum);
-    image::planes_file::write(&planes, &out.image, &sum).expect("writing the planes file");
+    // As a bake writes it (version 3), and as bakes of manifest version 7
+    // did (version 2, the range image whole).
+    let base = image::planes_file::BasePlanes::of(out.image.clone());
+    image::planes_file::write_base(&planes, &base, &sum).expect("writing the planes file");
+    let planes_v2 = dir.path().join("base-v2.exr.planes");
+    image::planes_file::write(&planes_v2, &out.image, &sum).expect("writing the planes file");
 
     let mut group = c.benchmark_group("open-base");
     group.sample_size(10);
@@ -149,7 +154,10 @@ fn open(c: &mut Criterion) {
         b.iter(|| image::read_exr_with_layers_hashed(&exr, &[]).expect("reading the EXR"))
     });
     group.bench_function(BenchmarkId::new("planes", "1040x688"), |b| {
-        b.iter(|| image::planes_file::read(&planes, &sum).expect("reading the planes"))
+        b.iter(|| image::planes_file::read_base(&planes, &sum).expect("reading the planes"))
+    });
+    group.bench_function(BenchmarkId::new("planes-v2", "1040x688"), |b| {
+        b.iter(|| image::planes_file::read(&planes_v2, &sum).expect("reading the planes"))
     });
     group.finish();
 }

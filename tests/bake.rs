@@ -662,8 +662,8 @@ fn a_bad_window_in_a_manifest_or_an_exr_is_refused_naming_the_file_and_field() {
     has(&e, &[&m.images[0].file, "data window", "`windows[0]`"]);
     // A manifest of a later version is refused as before.
     let dir = copy("later");
-    edit_manifest(&dir, |m| m["version"] = 8.into());
-    has(&refused(&dir), &["manifest.json", "`version` is 8"]);
+    edit_manifest(&dir, |m| m["version"] = 9.into());
+    has(&refused(&dir), &["manifest.json", "`version` is 9"]);
 
     // An EXR whose data window does not lie in its display window, with
     // either reader.
@@ -747,20 +747,48 @@ fn bake_and_version_5_copy(scene: &Scene, dir: &Path) -> (bake::Bake, bake::Bake
 
 #[test]
 fn planes_files_read_as_their_exrs_and_make_the_same_frames_bit_for_bit() {
+    use rangewalk::image::planes_file;
+    use rangewalk::image::planes_file::BasePlanes;
     use rangewalk::synth::{Options, Synthesizer, DEFAULT_BUDGET};
     let scene = load(&scene_path("cornell-box"));
     let tmp = tempfile::tempdir().unwrap();
     let (new, old) = bake_and_version_5_copy(&scene, tmp.path());
     assert!(!old.manifest.has_planes());
+    assert!(new.manifest.has_base_planes());
+    // A copy as version 7 wrote it: its planes files hold the range images
+    // whole (planes file version 2).
+    let v7 = tmp.path().join("v7");
+    std::fs::create_dir_all(v7.join("images")).unwrap();
+    std::fs::copy(new.dir.join("manifest.json"), v7.join("manifest.json")).unwrap();
     for (k, e) in new.manifest.images.iter().enumerate() {
         let planes = new.dir.join(format!("{}.planes", e.file));
         assert!(planes.exists(), "{} has no planes file", e.file);
         assert!(!old.dir.join(format!("{}.planes", e.file)).exists());
+        let sum = e.fnv1a64.clone().unwrap();
+        let file = planes_file::PlanesFile::open(&planes, &sum).unwrap();
+        assert_eq!(file.version(), 3, "image {k}");
         let exr = new.read_layers(k, &[]).unwrap().0;
         assert!(exr.meta.camera.window.is_some(), "image {k} is not cropped");
+        assert_eq!(
+            new.read_base(k).unwrap(),
+            BasePlanes::of(exr.clone()),
+            "image {k}"
+        );
         assert_eq!(new.read_range(k).unwrap(), exr, "image {k}");
         assert_eq!(old.read_range(k).unwrap(), exr, "image {k}");
+        std::fs::copy(new.dir.join(&e.file), v7.join(&e.file)).unwrap();
+        let v2 = bake::manifest::planes_path(&v7.join(&e.file));
+        planes_file::write(&v2, &exr, &sum).unwrap();
     }
+    edit_manifest(&v7, |m| m["version"] = 7.into());
+    let v7 = bake::Bake::open(&v7, &scene).unwrap_or_else(|e| panic!("{e:#}"));
+    assert!(v7.manifest.has_planes() && !v7.manifest.has_base_planes());
+    for k in 0..v7.manifest.images.len() {
+        assert_eq!(v7.read_range(k).unwrap(), old.read_range(k).unwrap());
+        let e = format!("{:#}", v7.read_base(k).unwrap_err());
+        assert!(e.contains("range images, not bases"), "{e}");
+    }
+    let mut seven = Synthesizer::new(&scene, &v7, DEFAULT_BUDGET);
     let main = scene.camera("main").unwrap();
     let p = Projection::Perspective {
         vfov_deg: main.vfov_deg,
@@ -776,6 +804,12 @@ fn planes_files_read_as_their_exrs_and_make_the_same_frames_bit_for_bit() {
         let camera = Camera::looking(a.lerp(b, s), main.direction, main.up, p, 40, 40).unwrap();
         let (mut f, _) = lazy.frame(&camera, t, &Options::default()).unwrap();
         let (g, _) = eager.frame(&camera, t, &Options::default()).unwrap();
+        let (mut h, _) = seven.frame(&camera, t, &Options::default()).unwrap();
+        h.meta.scene = g.meta.scene.clone();
+        assert!(
+            h == g,
+            "frame at s = {s}, t = {t} from version-2 planes files differs"
+        );
         // The provenance names the bake's folder; every pixel must agree.
         assert!(f.meta.scene.contains("v6") && g.meta.scene.contains("v5"));
         f.meta.scene = g.meta.scene.clone();
@@ -796,7 +830,7 @@ fn a_damaged_missing_or_foreign_planes_file_is_named_when_read_and_rendered_agai
     let m = new.manifest.clone();
     let planes = |k: usize| dir.join(format!("{}.planes", m.images[k].file));
     let before: Vec<Vec<u8>> = (0..4).map(|k| std::fs::read(planes(k)).unwrap()).collect();
-    let error = |k: usize| format!("{:#}", new.read_range(k).unwrap_err());
+    let error = |k: usize| format!("{:#}", new.read_base(k).unwrap_err());
     let has = |e: &str, needles: &[&str]| {
         for n in needles {
             assert!(e.contains(n), "`{n}` not in: {e}");

@@ -687,3 +687,75 @@ fn a_version_1_planes_file_still_reads_bit_for_bit_and_names_its_damage() {
         "{e}"
     );
 }
+
+#[test]
+fn a_version_3_planes_file_round_trips_a_base_bit_for_bit_and_names_the_damaged_chunk() {
+    use half::f16;
+    use rangewalk::image::planes_file::{self, BasePlanes, CHUNK};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("b.planes");
+    let sum = "0123456789abcdef";
+    let base_of = |image: RangeImage| BasePlanes {
+        width: image.width,
+        height: image.height,
+        radiance: image
+            .radiance
+            .iter()
+            .map(|c| c.to_array().map(f16::from_f32))
+            .collect(),
+        scale: 0.25,
+        distance: image.distance,
+        object_id: image.object_id,
+        primitive_id: image.primitive_id,
+        normal: image.normal,
+        meta: image.meta,
+    };
+    for projection in PROJECTIONS {
+        let (image, _) = windowed_sample_image(projection);
+        let base = base_of(image.clone());
+        planes_file::write_base(&path, &base, sum).unwrap();
+        assert_eq!(
+            planes_file::read_base(&path, sum).unwrap(),
+            base,
+            "{projection:?}"
+        );
+        planes_file::verify(&path, sum).unwrap();
+        // A range image is not what it holds, and a version-2 file holds
+        // no base: each reader says which file it is given.
+        let e = format!("{:#}", planes_file::read(&path, sum).unwrap_err());
+        assert!(e.contains("b.planes") && e.contains("holds a base"), "{e}");
+        let v2 = dir.path().join("v2.planes");
+        planes_file::write(&v2, &image, sum).unwrap();
+        let e = format!("{:#}", planes_file::read_base(&v2, sum).unwrap_err());
+        assert!(e.contains("v2.planes") && e.contains("not a base"), "{e}");
+    }
+    // Three chunks a plane; a flipped bit in the second chunk of the
+    // radiance is named while the other chunks read as written.
+    let (w, h) = (300, 500);
+    assert_eq!((w * h as usize).div_ceil(CHUNK), 3);
+    let base = base_of(sample_image_of(Projection::Sphere, w as u32, h));
+    planes_file::write_base(&path, &base, sum).unwrap();
+    let file = planes_file::PlanesFile::open(&path, sum).unwrap();
+    assert_eq!(file.version(), planes_file::VERSION);
+    let halves: Vec<u8> = base.radiance[CHUNK..2 * CHUNK]
+        .iter()
+        .flatten()
+        .flat_map(|h| h.to_bits().to_le_bytes())
+        .collect();
+    assert_eq!(file.read_chunk(0, 1).unwrap(), halves);
+    let span = file.chunk_span(0, 1).unwrap();
+    let mut bytes = std::fs::read(&path).unwrap();
+    bytes[(span.start + span.end) as usize / 2] ^= 4;
+    std::fs::write(&path, &bytes).unwrap();
+    let e = format!("{:#}", planes_file::read_base(&path, sum).unwrap_err());
+    assert!(
+        e.contains("b.planes") && e.contains("chunk 1 of plane `radiance_half`"),
+        "{e}"
+    );
+    assert!(planes_file::verify(&path, sum).is_err());
+    let file = planes_file::PlanesFile::open(&path, sum).unwrap();
+    let e = format!("{:#}", file.read_chunk(0, 1).unwrap_err());
+    assert!(e.contains("chunk 1 of plane `radiance_half`"), "{e}");
+    file.read_chunk(0, 0).unwrap();
+    file.read_chunk(0, 2).unwrap();
+}

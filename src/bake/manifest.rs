@@ -25,16 +25,21 @@ use crate::render::noise::NoiseReport;
 
 /// Identifies a base-image bake manifest.
 pub const FORMAT: &str = "rangewalk-base-images";
-/// Bumped whenever the layout changes. Version 7 compresses the planes
-/// files (planes file version 2; version 6's uncompressed ones, version 1,
-/// are still read), version 6 gives each image a planes file
+/// Bumped whenever the layout changes. Version 8's planes files hold what
+/// synthesis keeps of a base (planes file version 3: radiance unmixed
+/// beside the lights in half floats, distances, ids), version 7 compresses
+/// the planes files (planes file version 2; version 6's uncompressed ones,
+/// version 1, are still read), version 6 gives each image a planes file
 /// ([`planes_path`]), version 5 records each view's window
 /// (partial base images), version 4 the sampling settings and each
-/// image's noise, version 3 the planning settings; versions 2 to 6 are
+/// image's noise, version 3 the planning settings; versions 2 to 7 are
 /// read too (see [`Manifest::read`]); others are refused.
-pub const VERSION: u32 = 7;
+pub const VERSION: u32 = 8;
 /// The first version whose images have planes files.
 pub const PLANES_SINCE: u32 = 6;
+/// The first version whose planes files hold bases (planes file version 3)
+/// rather than range images.
+pub const BASE_PLANES_SINCE: u32 = 8;
 pub const MANIFEST: &str = "manifest.json";
 /// The object-space bake (radiosity), when indirect light comes from it.
 pub const RADIOSITY: &str = "radiosity";
@@ -108,7 +113,7 @@ impl Manifest {
             m.windows = vec![BaseWindow::whole(m.settings.size); m.plan.views.len()];
         }
         match m.version {
-            VERSION | 3..=6 => {}
+            VERSION | 3..=7 => {}
             // Version 2 did not record the planning settings, but its plans
             // did, as made: the id-image side, whether one master list, and
             // the view fitness (ids, the only one there was before plans
@@ -206,6 +211,12 @@ impl Manifest {
         self.version >= PLANES_SINCE
     }
 
+    /// Whether the planes files hold what synthesis keeps of each base
+    /// (`image::planes_file::read_base`) rather than range images.
+    pub fn has_base_planes(&self) -> bool {
+        self.version >= BASE_PLANES_SINCE
+    }
+
     /// Writes the manifest atomically (a reader sees the old or the new one).
     pub fn write(&self, dir: &Path) -> Result<()> {
         let text = serde_json::to_string_pretty(self).context("encoding the bake manifest")?;
@@ -220,8 +231,8 @@ pub fn checksum_path(image: &Path) -> PathBuf {
     PathBuf::from(name)
 }
 
-/// The planes file beside an image (`image::planes_file`): its range
-/// image raw, which synthesis reads without decoding the EXR.
+/// The planes file beside an image (`image::planes_file`): what synthesis
+/// reads of it without decoding the EXR.
 pub fn planes_path(image: &Path) -> PathBuf {
     let mut name = image.as_os_str().to_os_string();
     name.push(".planes");
@@ -243,7 +254,7 @@ pub fn verify(path: &Path, expected: Option<&str>, planes: bool) -> bool {
     path.exists()
         && recorded(path, expected).is_some_and(|sum| {
             checksum_of(path).as_ref() == Some(&sum)
-                && (!planes || image::planes_file::read(&planes_path(path), &sum).is_ok())
+                && (!planes || image::planes_file::verify(&planes_path(path), &sum).is_ok())
         })
 }
 

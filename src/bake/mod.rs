@@ -713,14 +713,15 @@ fn render_image(
             (DIFFUSE_DIRECT, &out.diffuse_direct),
         ],
     )?;
-    // Bakes of older versions resumed by this one are read from their
-    // EXRs: a planes file there would never be read.
-    if manifest.has_planes() {
-        image::planes_file::write(
-            &manifest::planes_path(&path),
-            &out.image,
-            &manifest::hex(sum),
-        )?;
+    // Bakes of older versions resumed by this one are read as they were
+    // written: before version 6 from their EXRs (a planes file there would
+    // never be read), before version 8 from range images' planes files.
+    let planes = manifest::planes_path(&path);
+    if manifest.has_base_planes() {
+        let base = image::planes_file::BasePlanes::of(out.image);
+        image::planes_file::write_base(&planes, &base, &manifest::hex(sum))?;
+    } else if manifest.has_planes() {
+        image::planes_file::write(&planes, &out.image, &manifest::hex(sum))?;
     }
     let report = out.sampling.report;
     sampling::write_report(&path, &report)?;
@@ -792,12 +793,35 @@ impl Bake {
         })
     }
 
-    /// Image `k`'s range image without its light layers, as synthesis
-    /// reads it: from its planes file, each chunk checked as it is read,
-    /// where the bake has them (version 6 on), else decoded from its EXR
-    /// and checked whole.
+    /// What synthesis reads of image `k` (`BasePlanes::of` its range image), read from
+    /// its planes file, each chunk checked as it is read; only bakes of
+    /// version 8 on have such planes files.
+    pub fn read_base(&self, k: usize) -> Result<image::planes_file::BasePlanes> {
+        let e = self.entry(k)?;
+        let path = manifest::planes_path(&self.dir.join(&e.file));
+        ensure!(
+            self.manifest.has_base_planes(),
+            "{}: a version-{} bake's planes files hold range images, not bases",
+            self.dir.display(),
+            self.manifest.version
+        );
+        // `open` refuses incomplete bakes: every image has its checksum.
+        let sum = e.fnv1a64.as_deref().unwrap_or_default();
+        let base = image::planes_file::read_base(&path, sum).map_err(|err| {
+            anyhow::anyhow!(
+                "{err:#}; run the bake again (the same `rangewalk bake` command) to re-render it"
+            )
+        })?;
+        self.check_window(e, &path, &base.meta.camera)?;
+        Ok(base)
+    }
+
+    /// Image `k`'s range image without its light layers: from its planes
+    /// file, each chunk checked as it is read, where the bake's planes
+    /// files hold range images (versions 6 and 7), else decoded from its
+    /// EXR and checked whole.
     pub fn read_range(&self, k: usize) -> Result<RangeImage> {
-        if !self.manifest.has_planes() {
+        if !self.manifest.has_planes() || self.manifest.has_base_planes() {
             return Ok(self.read_layers(k, &[])?.0);
         }
         let e = self.entry(k)?;
@@ -809,7 +833,7 @@ impl Bake {
                 "{err:#}; run the bake again (the same `rangewalk bake` command) to re-render it"
             )
         })?;
-        self.check_window(e, &path, &image)?;
+        self.check_window(e, &path, &image.meta.camera)?;
         Ok(image)
     }
 
@@ -838,16 +862,15 @@ impl Bake {
         if e.fnv1a64.as_deref() != Some(manifest::hex(sum).as_str()) {
             return Err(damaged());
         }
-        self.check_window(e, &path, &image)?;
+        self.check_window(e, &path, &image.meta.camera)?;
         Ok((image, layers))
     }
 
-    fn check_window(&self, e: &ImageEntry, path: &Path, image: &RangeImage) -> Result<()> {
+    fn check_window(&self, e: &ImageEntry, path: &Path, camera: &Camera) -> Result<()> {
         // The checksum holds the window the image was written with; the
         // manifest's must be that one, or pixels would be put in the
         // wrong directions.
         let window = self.manifest.windows.get(e.view);
-        let camera = &image.meta.camera;
         let (x, y) = camera.origin();
         let held = BaseWindow {
             x,

@@ -23,6 +23,7 @@ use rayon::prelude::*;
 
 use crate::bake::Bake;
 use crate::camera::Camera;
+use crate::image::planes_file::{to_half, BasePlanes};
 use crate::image::{RangeImage, NO_HIT};
 use crate::scene::Scene;
 
@@ -211,9 +212,47 @@ pub struct Base {
     pub blocks: Vec<Block>,
 }
 
-fn to_half(c: Vec3, inv_scale: f32) -> [f16; 3] {
-    let c = (c * inv_scale).max(Vec3::ZERO);
-    [f16::from_f32(c.x), f16::from_f32(c.y), f16::from_f32(c.z)]
+/// `img` with the pixels beside the scene's lights given the light of
+/// neighbours of like normal (`lights::unmix_beside_lights`), on the
+/// radiance the halves hold: a half times the power-of-two scale is exact
+/// in 32 bits and scales back to the same half, so the pixels re-lit take
+/// their neighbours' halves and the others keep theirs.
+fn unmix_beside_lights(scene: &Scene, img: BasePlanes) -> BasePlanes {
+    let (scale, inv) = (img.scale, 1.0 / img.scale);
+    let mut range = RangeImage {
+        width: img.width,
+        height: img.height,
+        radiance: img
+            .radiance
+            .par_iter()
+            .map(|h| from_half(h) * scale)
+            .collect(),
+        distance: img.distance,
+        object_id: img.object_id,
+        primitive_id: img.primitive_id,
+        normal: img.normal,
+        meta: img.meta,
+    };
+    let radiance = if super::lights::unmix_beside_lights(scene, &mut range) > 0 {
+        range
+            .radiance
+            .par_iter()
+            .map(|&c| to_half(c, inv))
+            .collect()
+    } else {
+        img.radiance
+    };
+    BasePlanes {
+        width: range.width,
+        height: range.height,
+        radiance,
+        scale,
+        distance: range.distance,
+        object_id: range.object_id,
+        primitive_id: range.primitive_id,
+        normal: range.normal,
+        meta: range.meta,
+    }
 }
 
 /// Decoded in software (inlined): `to_f32` asks the CPU for F16C on every
@@ -227,9 +266,28 @@ pub fn from_half(c: &[f16; 3]) -> Vec3 {
     )
 }
 
+/// Checks that `object_id` names the scene's objects.
+fn check_ids(scene: &Scene, image: usize, object_id: &[u32]) -> Result<()> {
+    for &o in object_id {
+        ensure!(
+            o == NO_HIT || (o as usize) < scene.objects.len(),
+            "base image {image}: object id {o}, but the scene has {} objects",
+            scene.objects.len()
+        );
+    }
+    Ok(())
+}
+
 impl Base {
     /// Prepares manifest image `image` of view `view` from the range image.
-    pub fn new(scene: &Scene, image: usize, view: usize, mut img: RangeImage) -> Result<Base> {
+    pub fn new(scene: &Scene, image: usize, view: usize, img: RangeImage) -> Result<Base> {
+        Base::from_planes(scene, image, view, BasePlanes::of(img))
+    }
+
+    /// Prepares manifest image `image` of view `view` from what a base
+    /// reads of it ([`BasePlanes::of`] the range image, or its planes
+    /// file): the same planes make the same base, bit for bit.
+    pub fn from_planes(scene: &Scene, image: usize, view: usize, img: BasePlanes) -> Result<Base> {
         let n = img.len();
         let camera = img.meta.camera;
         ensure!(
@@ -240,26 +298,8 @@ impl Base {
             img.width,
             img.height
         );
-        for &o in &img.object_id {
-            ensure!(
-                o == NO_HIT || (o as usize) < scene.objects.len(),
-                "base image {image}: object id {o}, but the scene has {} objects",
-                scene.objects.len()
-            );
-        }
-        super::lights::unmix_beside_lights(scene, &mut img);
-        let brightest = img
-            .radiance
-            .par_iter()
-            .map(|c| if c.is_finite() { c.max_element() } else { 0.0 })
-            .reduce(|| 0.0, f32::max);
-        // Half floats reach 65504; keep a factor two of headroom.
-        let scale = if brightest > 0.0 {
-            2f32.powi((brightest / 32768.0).log2().ceil() as i32)
-        } else {
-            1.0
-        };
-        let inv = 1.0 / scale;
+        check_ids(scene, image, &img.object_id)?;
+        let img = unmix_beside_lights(scene, img);
         let w = img.width as usize;
         let points: Vec<Vec3> = (0..n)
             .into_par_iter()
@@ -272,7 +312,6 @@ impl Base {
                 }
             })
             .collect();
-        let radiance = img.radiance.par_iter().map(|&c| to_half(c, inv)).collect();
         let moving: Vec<bool> = scene
             .objects
             .iter()
@@ -288,8 +327,8 @@ impl Base {
             points,
             object: img.object_id,
             primitive: img.primitive_id,
-            radiance,
-            scale,
+            radiance: img.radiance,
+            scale: img.scale,
             tiles,
             blocks,
         })
@@ -487,8 +526,12 @@ impl BaseCache {
             .get(k)
             .map(|e| e.view)
             .unwrap_or_default();
-        let image = bake.read_range(k)?;
-        let base = Arc::new(Base::new(scene, k, view, image)?);
+        let base = if bake.manifest.has_base_planes() {
+            Base::from_planes(scene, k, view, bake.read_base(k)?)?
+        } else {
+            Base::new(scene, k, view, bake.read_range(k)?)?
+        };
+        let base = Arc::new(base);
         self.load_seconds += start.elapsed().as_secs_f64();
         self.loads += 1;
         while !self.held.is_empty() && self.bytes() + base.bytes() > self.budget {

@@ -149,9 +149,6 @@ typedef uint32_t rw_filter;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
-// The bake's sampling settings besides `Settings::spp`.
-typedef struct Sampling Sampling;
-
 // A finished bake with the scene it was made from (opaque). `rw_synth`
 // may run on one bake from several threads at once; each thread keeps the
 // base images it read (up to `base_memory_mib` each) for its next frame.

@@ -388,9 +388,13 @@ fn lock_bake(
     sampling: &Sampling,
     me: &lock::Holder,
 ) -> Result<lock::Setup> {
-    ensure!(settings.spp > 0, "--spp must be at least 1");
-    sampling.check(settings.spp)?;
-    ensure!(settings.size > 0, "--size must be at least 1");
+    let field = |f: &str| format!("settings.{f}");
+    ensure!(settings.spp > 0, "settings.spp 0: a pixel needs a sample");
+    sampling.check(settings.spp, &field)?;
+    ensure!(
+        settings.size > 0,
+        "settings.size 0: a base image needs a pixel"
+    );
     if !dir.join(manifest::MANIFEST).exists() {
         check_fresh(dir)?;
     }
@@ -428,7 +432,7 @@ pub fn check_resumable(
     settings: &Settings,
     sampling: &Sampling,
 ) -> Result<()> {
-    sampling.check(settings.spp)?;
+    sampling.check(settings.spp, &|f| format!("settings.{f}"))?;
     if !dir.join(manifest::MANIFEST).exists() {
         return check_fresh(dir);
     }

@@ -45,18 +45,27 @@ impl Sampling {
         max_spp: None,
     };
 
-    /// Refuses values that cannot make a bake, naming the option.
-    pub fn check(&self, spp: u32) -> Result<()> {
+    /// Refuses values that cannot make a bake with `spp` samples at least.
+    /// `name` turns a field's name (`max_spp`) into what the caller calls
+    /// it (`--max-spp`, `options->max_spp`).
+    pub fn check(&self, spp: u32, name: &dyn Fn(&str) -> String) -> Result<()> {
         match (self.noise, self.max_spp) {
-            (Some(noise), _) => check_noise(noise)?,
+            (Some(noise), _) => check_noise(noise, name)?,
             (None, Some(m)) => bail!(
-                "--max-spp {m} applies with a --noise target only; without one every pixel takes --spp samples"
+                "{} {m} applies with a {} target only; without one every pixel takes {} samples",
+                name("max_spp"),
+                name("noise"),
+                name("spp")
             ),
             (None, None) => {}
         }
         if let Some(m) = self.max_spp {
             if m < spp {
-                bail!("--max-spp {m} is below --spp {spp}: the limit cannot be under the minimum");
+                bail!(
+                    "{} {m} is below {} {spp}: the limit cannot be under the minimum",
+                    name("max_spp"),
+                    name("spp")
+                );
             }
         }
         Ok(())
@@ -84,9 +93,12 @@ impl Sampling {
 }
 
 /// Refuses a noise target that is no relative error in (0, 1].
-pub fn check_noise(noise: f32) -> Result<()> {
+fn check_noise(noise: f32, name: &dyn Fn(&str) -> String) -> Result<()> {
     if !(noise > 0.0 && noise <= 1.0) {
-        bail!("--noise {noise} is not a relative error in (0, 1] (0.02: 2 %), nor `off`");
+        bail!(
+            "{} {noise} is not a relative error in (0, 1] (0.02: 2 %)",
+            name("noise")
+        );
     }
     Ok(())
 }
@@ -100,7 +112,7 @@ pub fn parse_noise(s: &str) -> Result<Option<f32>, String> {
         .trim()
         .parse()
         .map_err(|_| format!("`{s}` is not a number (a relative error such as 0.02) nor `off`"))?;
-    check_noise(v).map_err(|e| e.to_string())?;
+    check_noise(v, &|f| format!("--{f}")).map_err(|e| format!("{e}, nor `off`"))?;
     Ok(Some(v))
 }
 
@@ -147,13 +159,20 @@ mod tests {
             noise: Some(0.02),
             max_spp: Some(4),
         };
-        let e = low.check(8).unwrap_err().to_string();
+        let flag = |f: &str| format!("--{}", f.replace('_', "-"));
+        let e = low.check(8, &flag).unwrap_err().to_string();
         assert!(e.contains("--max-spp 4 is below --spp 8"), "{e}");
+        let field = |f: &str| format!("options->{f}");
+        let e = low.check(8, &field).unwrap_err().to_string();
+        assert!(
+            e.contains("options->max_spp 4 is below options->spp 8"),
+            "{e}"
+        );
         let alone = Sampling {
             noise: None,
             max_spp: Some(64),
         };
-        let e = alone.check(8).unwrap_err().to_string();
+        let e = alone.check(8, &flag).unwrap_err().to_string();
         assert!(
             e.contains("--max-spp 64 applies with a --noise target only"),
             "{e}"

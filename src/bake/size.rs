@@ -61,36 +61,40 @@ pub fn max_side() -> u32 {
 
 /// The side of a bake's base images: `size` if given, else sized for
 /// `frame`-sized frames at the scene's narrowest field of view; with the
-/// sentence that says where it came from.
+/// sentence that says where it came from. `name` turns a field's name
+/// (`size`, `frame_size`) into what the caller calls it (`--size`,
+/// `options->size`).
 pub fn resolve(
     scene: &Scene,
     size: Option<u32>,
     projection: BaseProjection,
     frame: (u32, u32),
+    name: &dyn Fn(&str) -> String,
 ) -> Result<(u32, String)> {
     let kind = format!("{projection:?}").to_lowercase();
+    let (size_name, frame_name) = (name("size"), name("frame_size"));
     match size {
         Some(n) if n < MIN_SIDE => bail!(
-            "--size {n} is below the smallest base image side, {MIN_SIDE}: a {kind} base of {n}x{n} pixels shows no scene; give --size {MIN_SIDE} or more, or leave it out to size bases from --frame-size"
+            "{size_name} {n} is below the smallest base image side, {MIN_SIDE}: a {kind} base of {n}x{n} pixels shows no scene; give {size_name} {MIN_SIDE} or more, or leave it out to size bases from {frame_name}"
         ),
         Some(n) if n > max_side() => bail!(
-            "--size {n} is above the largest base image side, {}: a base image may hold at most {} pixels",
+            "{size_name} {n} is above the largest base image side, {}: a base image may hold at most {} pixels",
             max_side(),
             crate::image::MAX_PIXELS
         ),
-        Some(n) => Ok((n, format!("base images: {n}x{n} {kind} (--size)"))),
+        Some(n) => Ok((n, format!("base images: {n}x{n} {kind} ({size_name})"))),
         None => {
             let (w, h) = frame;
             let Some(fov) = narrowest_fov(scene) else {
                 bail!(
-                    "{} has no camera or walk path to size base images from: pass --size",
+                    "{} has no camera or walk path to size base images from: give {size_name}",
                     scene.source.display()
                 );
             };
             let n = base_size(projection, frame, fov);
             if n > max_side() {
                 bail!(
-                    "base images sized for {w}x{h} frames at the scene's narrowest field of view, {fov}°, would be {n}x{n} pixels, above the largest side, {}: lower --frame-size or give --size",
+                    "base images sized for {w}x{h} frames at the scene's narrowest field of view, {fov}°, would be {n}x{n} pixels, above the largest side, {}: lower {frame_name} or give {size_name}",
                     max_side()
                 );
             }

@@ -7,6 +7,11 @@ use std::path::PathBuf;
 use super::error::Failure;
 use crate::image::MAX_SIDE;
 
+/// How the C caller names a field of an options struct: `options->spp`.
+pub(crate) fn field(name: &str) -> String {
+    format!("options->{name}")
+}
+
 /// A NUL-terminated UTF-8 path.
 ///
 /// # Safety

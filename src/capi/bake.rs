@@ -4,7 +4,7 @@
 use std::ffi::{c_char, c_void};
 use std::sync::Mutex;
 
-use super::args;
+use super::args::{self, field};
 use super::error::{guard, Failure};
 use super::scene::rw_scene;
 use super::status::rw_status;
@@ -141,8 +141,11 @@ fn settings(
         Failure::invalid(format!("options->frame_width, frame_height: {}", f.message))
     })?;
     let size = (o.size != 0).then_some(o.size);
-    let (size, _) = bake::size::resolve(scene, size, projection, frame)
-        .map_err(|e| Failure::invalid(format!("options->size: {e:#}")))?;
+    let (size, _) = bake::size::resolve(scene, size, projection, frame, &|f| match f {
+        "frame_size" => "options->frame_width, frame_height".into(),
+        f => field(f),
+    })
+    .map_err(|e| Failure::invalid(format!("{e:#}")))?;
     let shard = match o.shard_count {
         0 | 1 if o.shard_index == 0 => Shard::ALL,
         n if o.shard_index < n => Shard {
@@ -162,22 +165,13 @@ fn settings(
     } else {
         o.noise
     };
-    if !(noise > 0.0 && noise <= 1.0) {
-        return Err(Failure::invalid(format!(
-            "options->noise {noise} is not a relative error in (0, 1] (0: the default, {})",
-            defaults.noise
-        )));
-    }
-    if o.max_spp != 0 && o.max_spp < spp {
-        return Err(Failure::invalid(format!(
-            "options->max_spp {} is below options->spp {spp}",
-            o.max_spp
-        )));
-    }
     let sampling = Sampling {
         noise: Some(noise),
         max_spp: (o.max_spp != 0).then_some(o.max_spp),
     };
+    sampling
+        .check(spp, &field)
+        .map_err(|e| Failure::invalid(format!("{e:#}")))?;
     let settings = bake::Settings {
         quality,
         size,

@@ -1,6 +1,6 @@
 //! `rw_synth`: frames from a bake, as `rangewalk synth` makes them.
 
-use super::args;
+use super::args::{self, field};
 use super::bake::rw_bake;
 use super::error::{guard, Failure};
 use super::status::rw_status;
@@ -111,11 +111,6 @@ impl Default for rw_synth_options {
             } as u32,
         }
     }
-}
-
-/// How the C caller names an [`Options`] field.
-fn field(name: &str) -> String {
-    format!("options->{name}")
 }
 
 impl rw_synth_options {

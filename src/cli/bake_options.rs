@@ -9,7 +9,7 @@ use rangewalk::plan::ViewFitness;
 use rangewalk::quality::Quality;
 use rangewalk::scene::Scene;
 
-use super::choice;
+use super::{choice, flag};
 
 /// `--noise`: a target, or none (`off`). Named apart from `Option` so that
 /// clap takes it as the value of an argument that always has one.
@@ -74,7 +74,8 @@ impl BakeOptions {
         s: &Scene,
         quality: Quality,
     ) -> Result<(bake::Settings, bake::Sampling, String)> {
-        let (size, why) = bake::size::resolve(s, self.size, self.projection, self.frame_size)?;
+        let (size, why) =
+            bake::size::resolve(s, self.size, self.projection, self.frame_size, &flag)?;
         let settings = bake::Settings {
             quality,
             size,
@@ -95,7 +96,7 @@ impl BakeOptions {
             noise: self.noise.unwrap_or(Some(bake::sampling::DEFAULT_NOISE)),
             max_spp: self.max_spp,
         };
-        sampling.check(self.spp)?;
+        sampling.check(self.spp, &flag)?;
         Ok((settings, sampling, why))
     }
 

@@ -25,6 +25,11 @@ use rangewalk::accel::{self, Backend, InstancedEngine};
 use rangewalk::scene::Scene;
 use strum::{EnumMessage, VariantArray};
 
+/// The flag of a settings field: `light_rays` is `--light-rays`.
+pub fn flag(field: &str) -> String {
+    format!("--{}", field.replace('_', "-"))
+}
+
 /// The parser of one of the library's closed sets: each value's name and
 /// doc line listed in `--help`, the text parsed by the enum's own
 /// `FromStr`, so that the names are written once, on the enum.

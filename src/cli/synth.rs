@@ -13,12 +13,7 @@ use rangewalk::synth::{
     self, view_space_warning, Blend, Fill, Filter, Options, Synthesizer, TimeInterp, DEFAULT_BUDGET,
 };
 
-use super::choice;
-
-/// The flag of an [`Options`] field: `light_rays` is `--light-rays`.
-fn flag(field: &str) -> String {
-    format!("--{}", field.replace('_', "-"))
-}
+use super::{choice, flag};
 
 /// Frame size of `rangewalk synth` and `walk`.
 pub const DEFAULT_SIZE: &str = "512x512";

@@ -372,7 +372,15 @@ int main(int argc, char **argv) {
     EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "options->noise NaN");
     o = options;
     o.max_spp = options.spp - 1;
-    EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT, "options->max_spp 15");
+    EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT,
+           "options->max_spp 15 is below options->spp 16");
+    /* The library's checks name the C fields, never a command-line flag. */
+    CHECK(!strstr(last_error(), "--"));
+    o = options;
+    o.size = 7;
+    EXPECT(rw_bake_run(scene, &o, fresh, NULL, NULL), RW_INVALID_ARGUMENT,
+           "options->size 7 is below the smallest base image side");
+    CHECK(strstr(last_error(), "options->frame_width, frame_height") && !strstr(last_error(), "--"));
     o = options;
     o.shard_index = 3;
     o.shard_count = 2;

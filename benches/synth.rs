@@ -38,7 +38,7 @@ fn plan(scene: &Scene) -> Plan {
         panic!("the Cornell box's view space is a segment");
     };
     Plan {
-        quality: 0.6,
+        quality: rangewalk::quality::Quality::new(0.6).unwrap(),
         views: (0..4)
             .map(|i| PlannedView {
                 position: a.lerp(b, i as f32 / 3.0),

@@ -33,7 +33,7 @@ fn plan(scene: &Scene) -> Plan {
         panic!("the Cornell box's view space is a segment");
     };
     Plan {
-        quality: 0.6,
+        quality: Quality::new(0.6).unwrap(),
         views: [a, b]
             .into_iter()
             .map(|position| PlannedView {

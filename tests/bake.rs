@@ -27,7 +27,7 @@ fn two_by_two(scene: &Scene) -> Plan {
     };
     let a_ = scene.animation;
     Plan {
-        quality: 0.3,
+        quality: Quality::new(0.3).unwrap(),
         views: [a, b]
             .map(|position| PlannedView {
                 position,

@@ -14,6 +14,7 @@ use rangewalk::camera::{Camera, Projection};
 use rangewalk::eval::metrics::{self, luminance};
 use rangewalk::image::{RangeImage, NO_HIT};
 use rangewalk::plan::{Plan, PlannedView};
+use rangewalk::quality::Quality;
 use rangewalk::radiosity::lookup::IrradianceCache;
 use rangewalk::render::{self, RenderSettings};
 use rangewalk::scene::Scene;
@@ -28,7 +29,7 @@ fn ends(scene: &Scene, times: &[f32]) -> Plan {
         panic!("the Cornell box's view space is a segment");
     };
     Plan {
-        quality: 0.6,
+        quality: Quality::new(0.6).unwrap(),
         views: [a, b]
             .map(|position| PlannedView {
                 position,
@@ -261,7 +262,7 @@ fn subpixels_show_each_surface_by_its_share_where_a_silhouette_crosses_a_pixel()
     // frame pixel shows is all in the base, so the error left on edges is
     // resampling's.
     let plan = Plan {
-        quality: 0.6,
+        quality: Quality::new(0.6).unwrap(),
         views: vec![PlannedView {
             position: camera.position,
             times: vec![0.0],

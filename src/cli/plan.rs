@@ -123,7 +123,7 @@ pub fn run(args: PlanArgs) -> Result<()> {
     for t in &p.intervals {
         let verdict = if t.split {
             "split"
-        } else if t.fitness < p.quality {
+        } else if t.fitness < p.quality.get() {
             "one frame apart, kept"
         } else {
             "coherent"

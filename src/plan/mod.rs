@@ -33,7 +33,7 @@ pub use views::CellTest;
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
     /// The quality `q` every subdivision followed.
-    pub quality: f32,
+    pub quality: Quality,
     /// Base views in a fixed order (bakes name images by view index).
     pub views: Vec<PlannedView>,
     /// The times direct light needs (from the lights' id-images), before
@@ -296,7 +296,7 @@ pub fn make(
 
     let to_times = |l: &[u32]| l.iter().map(|&k| frames.time(k)).collect::<Vec<f32>>();
     Ok(Plan {
-        quality: q,
+        quality: options.quality,
         views: positions
             .iter()
             .zip(&lists)

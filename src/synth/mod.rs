@@ -780,7 +780,7 @@ mod tests {
             panic!("the Cornell box's view space is a segment");
         };
         let plan = Plan {
-            quality: 0.6,
+            quality: crate::quality::Quality::new(0.6).unwrap(),
             views: (0..3)
                 .map(|i| PlannedView {
                     position: a.lerp(b, i as f32 / 2.0),

@@ -144,7 +144,7 @@ const W: u32 = 160;
 const H: u32 = 128;
 
 /// Synth's options that make the viewer's drafts.
-const DRAFT: [&str; 8] = [
+const DRAFT: [&str; 10] = [
     "--supersample",
     "1",
     "--filter",
@@ -152,6 +152,8 @@ const DRAFT: [&str; 8] = [
     "--blend",
     "nearest",
     "--light-rays",
+    "4",
+    "--reshade-samples",
     "4",
 ];
 

@@ -145,7 +145,7 @@ impl Default for Options {
     fn default() -> Self {
         Self {
             fill: Fill::Both,
-            time_interp: TimeInterp::Motion,
+            time_interp: TimeInterp::Reshade,
             bases: 4,
             blend: Blend::Average,
             tolerance: 0.02,

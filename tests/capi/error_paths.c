@@ -456,7 +456,7 @@ int main(int argc, char **argv) {
     rw_synth_options synth_defaults, so;
     EXPECT(rw_synth_options_default(&synth_defaults), RW_OK, NULL);
     CHECK(synth_defaults.bases == 4 && synth_defaults.fill == RW_FILL_BOTH &&
-          synth_defaults.time_interp == RW_TIME_INTERP_MOTION && synth_defaults.filter == RW_FILTER_BOX);
+          synth_defaults.time_interp == RW_TIME_INTERP_RESHADE && synth_defaults.filter == RW_FILTER_BOX);
     so = synth_defaults;
     so.bases = 0;
     EXPECT(rw_synth_with(bake, &view, 0.5f, W, H, &so, rgb, distance), RW_INVALID_ARGUMENT, "bases");

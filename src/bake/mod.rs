@@ -389,7 +389,6 @@ fn lock_bake(
     me: &lock::Holder,
 ) -> Result<lock::Setup> {
     let field = |f: &str| format!("settings.{f}");
-    ensure!(settings.spp > 0, "settings.spp 0: a pixel needs a sample");
     sampling.check(settings.spp, &field)?;
     ensure!(
         settings.size > 0,

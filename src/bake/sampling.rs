@@ -49,6 +49,9 @@ impl Sampling {
     /// `name` turns a field's name (`max_spp`) into what the caller calls
     /// it (`--max-spp`, `options->max_spp`).
     pub fn check(&self, spp: u32, name: &dyn Fn(&str) -> String) -> Result<()> {
+        if spp == 0 {
+            bail!("{} 0: a pixel needs at least 1 sample", name("spp"));
+        }
         match (self.noise, self.max_spp) {
             (Some(noise), _) => check_noise(noise, name)?,
             (None, Some(m)) => bail!(
@@ -162,6 +165,8 @@ mod tests {
         let flag = |f: &str| format!("--{}", f.replace('_', "-"));
         let e = low.check(8, &flag).unwrap_err().to_string();
         assert!(e.contains("--max-spp 4 is below --spp 8"), "{e}");
+        let e = Sampling::default().check(0, &flag).unwrap_err().to_string();
+        assert!(e.contains("--spp 0"), "{e}");
         let field = |f: &str| format!("options->{f}");
         let e = low.check(8, &field).unwrap_err().to_string();
         assert!(

@@ -26,10 +26,10 @@ export RANGEWALK_PYTHON := $(abspath $(PYTHON))
 demo: deps build
 	@rm -rf out/demo out/demo.partial && mkdir -p out/demo.partial
 	@set -o pipefail; { \
-	  $(RW) bake $(DEMO_SCENE) --quality 0.6 --frame-size $(DEMO_SIZE) --spp 8 --indirect gather --out out/demo.partial/bake && \
-	  $(RW) walk out/demo.partial/bake --path walk --size $(DEMO_SIZE) --time-interp reshade \
+	  $(RW) bake $(DEMO_SCENE) --quality 0.6 --frame-size $(DEMO_SIZE) --spp 8 --out out/demo.partial/bake && \
+	  $(RW) walk out/demo.partial/bake --path walk --size $(DEMO_SIZE) \
 	    --check-every 5 --check-spp $(DEMO_SPP) --out out/demo.partial/walk && \
-	  $(RW) synth out/demo.partial/bake --camera main --time 0.5 --size $(DEMO_SIZE) --time-interp reshade \
+	  $(RW) synth out/demo.partial/bake --camera main --time 0.5 --size $(DEMO_SIZE) \
 	    --out out/demo.partial/synth-main-t0.5.exr --preview out/demo.partial/synth-main-t0.5.png; \
 	} 2>&1 | tee out/demo.partial/summary.txt
 	@mv out/demo.partial out/demo

@@ -81,7 +81,11 @@ impl Default for rw_bake_options {
             frame_width,
             frame_height,
             projection: rw_projection::RW_PROJECTION_SPHERE as u32,
-            indirect: rw_indirect::RW_INDIRECT_RADIOSITY as u32,
+            indirect: match IndirectSource::default() {
+                IndirectSource::Radiosity => rw_indirect::RW_INDIRECT_RADIOSITY,
+                IndirectSource::Path => rw_indirect::RW_INDIRECT_PATH,
+                IndirectSource::Gather => rw_indirect::RW_INDIRECT_GATHER,
+            } as u32,
             max_depth: 0,
             shard_index: 0,
             shard_count: 1,

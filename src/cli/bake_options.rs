@@ -41,8 +41,8 @@ pub struct BakeOptions {
     #[arg(long, value_parser = choice::<BaseProjection>(), default_value_t = BaseProjection::Sphere)]
     projection: BaseProjection,
     /// Diffuse indirect light: radiosity records (the paper's multipass
-    /// renderer) or traced.
-    #[arg(long, value_parser = choice::<IndirectSource>(), default_value_t = IndirectSource::Radiosity)]
+    /// renderer), gathered through one traced bounce, or traced.
+    #[arg(long, value_parser = choice::<IndirectSource>(), default_value_t = IndirectSource::default())]
     indirect: IndirectSource,
     #[arg(long, default_value_t = 0)]
     seed: u64,
